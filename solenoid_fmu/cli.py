@@ -1,0 +1,83 @@
+"""Command line: ``solenoid-fmu <command> ...``.
+
+Each data-flow module owns its subcommands through a function ``add_cli(subparsers)`` that
+registers an argparse parser and sets ``func`` (called with the parsed namespace; returns the
+exit code). This module only collects them, prints errors without a traceback and sets the exit
+code: 0 success, 1 a checked error (bad file, non-convergence), 2 a usage error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__
+from .errors import SolenoidError
+
+#: Modules that contribute subcommands, in the order of the data flow.
+COMMAND_MODULES = (
+    "fem",
+    "maps",
+    "recordings",
+    "rig",
+    "identify",
+    "fmu",
+    "validate",
+    "diagnose",
+    "pipeline",
+)
+
+EPILOG = """examples:
+  solenoid-fmu solve --x-mm 1.5 --i-A 1.5 --json
+  solenoid-fmu maps -o maps/ps45-literature
+  solenoid-fmu export maps/ps45-literature -o build/ps45.fmu
+  solenoid-fmu pipeline fitting/ps45-demo -o build/ps45-demo
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every available subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="solenoid-fmu",
+        description="Valve solenoid: FEM, B(H) identification, characteristic maps, FMU export.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"solenoid-fmu {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"solenoid_fmu.{name}")
+        except ModuleNotFoundError as exc:  # a module not written yet contributes nothing
+            if exc.name != f"solenoid_fmu.{name}":
+                raise
+            continue
+        add = getattr(module, "add_cli", None)
+        if add is not None:
+            add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code (also used by ``python -m solenoid_fmu``)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "func", None) is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except SolenoidError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"error: {exc.strerror}: {exc.filename}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
