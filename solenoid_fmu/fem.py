@@ -1,0 +1,522 @@
+r"""Axisymmetric nonlinear magnetostatics of a solenoid: flux linkage Psi(i, x) and force F(i, x).
+
+Formulation
+-----------
+The unknown is the flux function :math:`u = r A_\varphi` (second-order Lagrange elements on the
+morphed triangle mesh of :mod:`solenoid_fmu.mesh`); :math:`2\pi u` is the flux through the circle
+of radius r. With :math:`B = |\nabla u| / r`, the energy functional
+
+.. math:: \Pi(u) = 2\pi \iint \left[ r\, w(B) - J u \right] \, dr\, dz, \qquad w(B)=\int_0^B H\,dB'
+
+is strictly convex (the B(H) curve's slopes are bounded, :mod:`solenoid_fmu.material`), and its
+minimizer solves :math:`-\nabla\cdot(\nu/r\,\nabla u) = J`. Newton's method on
+:math:`\nu(B^2)` with an Armijo line search on :math:`\Pi` converges from any start; a previous
+solution is a warm start. u = 0 on the axis and on the air box (sides listed in
+``[domain] natural`` keep the natural condition instead). J = turns * i / coil area in the coil.
+
+Outputs
+-------
+- ``psi_Wb`` = (turns / coil area) * integral over the coil of :math:`2\pi u` (paper eq. 4's Psi).
+- ``force_coenergy_N``: :math:`F = -\partial W'/\partial x|_i` (paper eq. 3) computed exactly on
+  the discrete level: the vertex positions are affine in x (mesh morph), so by the envelope
+  theorem :math:`-dW'/dx = \partial\Pi/\partial x` at fixed nodal values, an element sum of the
+  derivative of the energy density and of the Jacobians along the morph velocity. This is the
+  force the maps carry: it is consistent with Psi (both derive from one discrete co-energy).
+- ``force_stress_N``: Maxwell stress on the armature in its volume ("eggshell") form:
+  the same virtual-work sum, but with a velocity field that is 1 on the armature, falls to 0 across
+  the surrounding air and is 0 on every other body, so only air elements (linear, B^2/2mu0)
+  contribute: :math:`F = -\int_{air} T : \nabla g\,dV`. Independent of the morph.
+
+Sign: the force is positive when it pulls the armature towards the pole (closing the gap x).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from .errors import SolverError
+from .geometry import Geometry, load_geometry
+from .material import MU_0, NU_0, BHCurve, load_material
+from .mesh import MorphMesh, build_mesh
+
+#: Newton settings (tolerances relative to the source norm / the solution norm).
+NEWTON_RTOL = 1e-9
+NEWTON_MAXIT = 40
+EGGSHELL_M = 0.4e-3  # thickness of the air layer over which the Maxwell-stress weight falls to 0
+
+
+@dataclass
+class Solution:
+    """One operating point: current, gap, the nodal flux function and the results (SI)."""
+
+    i_A: float
+    x_m: float
+    u: np.ndarray
+    psi_Wb: float
+    force_coenergy_N: float
+    force_stress_N: float
+    coenergy_J: float
+    newton_iterations: int
+    residual_history: list = field(default_factory=list)
+
+    @property
+    def force_N(self) -> float:
+        """The force the maps carry: the co-energy derivative (paper eq. 3) [N]."""
+        return self.force_coenergy_N
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (the keys of ``solenoid-fmu solve --json``)."""
+        return {
+            "psi_Wb": self.psi_Wb,
+            "force_N": self.force_coenergy_N,
+            "force_coenergy_N": self.force_coenergy_N,
+            "force_stress_N": self.force_stress_N,
+            "coenergy_J": self.coenergy_J,
+            "newton_iterations": self.newton_iterations,
+            "x_mm": self.x_m * 1e3,
+            "i_A": self.i_A,
+        }
+
+
+class _Config:
+    """Everything that depends on the gap x: quadrature data on the morphed mesh."""
+
+    def __init__(self, solver: Solver, x_m: float):
+        from skfem import Basis, ElementTriP2, MeshTri
+
+        mm = solver.mesh
+        self.x_m = x_m
+        self.p = mm.points_at(x_m)
+        basis = Basis(MeshTri(self.p, mm.t), ElementTriP2(), intorder=4)
+        self.basis = basis
+        self.dx = basis.dx  # (nel, nq) quadrature weight * |detJ|
+        self.r = basis.mapping.F(basis.X)[0]  # (nel, nq) radius of each quadrature point
+        self.G = np.stack([basis.basis[k][0].grad for k in range(6)], axis=0)  # (6, 2, nel, nq)
+        self.phi = np.stack([basis.basis[k][0].value for k in range(6)], axis=0)  # (6, nel, nq)
+        self.w_over_r = self.dx / self.r
+        # element Jacobians of the affine map and their x-derivative along the morph velocity
+        t = basis.mesh.t  # skfem may reorder the vertices within each element: use its order
+        p = self.p
+        self.J = np.array(
+            [[p[0, t[1]] - p[0, t[0]], p[0, t[2]] - p[0, t[0]]], [p[1, t[1]] - p[1, t[0]], p[1, t[2]] - p[1, t[0]]]]
+        )  # (2, 2, nel)
+        self.Jinv = _inv2(self.J)
+        lam = np.array([1 - basis.X[0] - basis.X[1], basis.X[0], basis.X[1]])  # (3, nq) barycentric
+        self.lam = lam
+        # unit sources: f_coil = int J_coil(i=1 A) phi_k, f_fixed = int J from ampere_turn regions
+        self.f_coil = solver._assemble_source(self, solver.coil_density_per_A)
+        self.f_fixed = solver._assemble_source(self, solver.fixed_density)
+        coil = solver.coil_elements
+        self.psi_weights = _scatter_vector(
+            solver, self.phi[:, coil] * self.dx[coil][None], coil
+        ) * (2 * np.pi * solver.geometry.coil.turns / solver.coil_area)
+
+    def velocity_L(self, vr: np.ndarray, vz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """L = dJ J^-1 (2, 2, nel) and dr/dx at quadrature points for vertex velocities (vr, vz).
+
+        With g = J^-T g_ref: dg/dx = -L^T g and d(det J)/dx = det J tr(L).
+        """
+        t = self.basis.mesh.t
+        dJ = np.array(
+            [[vr[t[1]] - vr[t[0]], vr[t[2]] - vr[t[0]]], [vz[t[1]] - vz[t[0]], vz[t[2]] - vz[t[0]]]]
+        )
+        L = np.einsum("ijn,jkn->ikn", dJ, self.Jinv)
+        dr_q = np.einsum("vn,vq->nq", vr[t], self.lam)
+        return L, dr_q
+
+
+def _inv2(J: np.ndarray) -> np.ndarray:
+    det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
+    return np.array([[J[1, 1], -J[0, 1]], [-J[1, 0], J[0, 0]]]) / det
+
+
+def _scatter_vector(solver: Solver, local: np.ndarray, elements: np.ndarray) -> np.ndarray:
+    """Sum element contributions local (6, nsel, nq) over quadrature points into a global vector."""
+    vals = local.sum(axis=-1)  # (6, nsel)
+    return np.bincount(solver.dofs[:, elements].ravel(), weights=vals.ravel(), minlength=solver.ndofs)
+
+
+class Solver:
+    """Nonlinear axisymmetric magnetostatic solver for one geometry, material and mesh.
+
+    Parameters
+    ----------
+    geometry : Geometry
+    material : BHCurve
+        The steel's B(H) curve (all ``steel`` regions).
+    mesh_size : float
+        Mesh-size knob of :func:`solenoid_fmu.mesh.build_mesh` (1 = default accuracy).
+
+    Notes
+    -----
+    Holds the mesh, the sparsity pattern and the per-position quadrature data (cached for the last
+    position), so a sweep over currents at one x costs one Newton solve per current.
+    """
+
+    def __init__(self, geometry: Geometry, material: BHCurve, mesh_size: float = 1.0, mesh: MorphMesh = None):
+        from skfem import Basis, ElementTriP2, MeshTri
+
+        self.geometry = geometry
+        self.material = material
+        self.mesh_size = mesh_size
+        self.mesh = mesh if mesh is not None else build_mesh(geometry, mesh_size)
+        mm = self.mesh
+        basis0 = Basis(MeshTri(mm.p_ref, mm.t), ElementTriP2(), intorder=4)
+        self.dofs = basis0.element_dofs  # (6, nel)
+        self.ndofs = basis0.N
+        self.nel = mm.n_triangles
+        # materials per element
+        names = mm.region_names
+        steel_regions = [k for k, r in enumerate(geometry.regions) if r.material == "steel"]
+        self.steel = np.isin(mm.region, steel_regions)
+        coil_k = names.index(geometry.coil.region)
+        self.coil_elements = np.flatnonzero(mm.region == coil_k)
+        self.coil_area = geometry.region(geometry.coil.region).area_m2
+        dens = np.zeros(self.nel)
+        dens[self.coil_elements] = geometry.coil.turns / self.coil_area
+        self.coil_density_per_A = dens
+        fixed = np.zeros(self.nel)
+        for k, reg in enumerate(geometry.regions):
+            if reg.ampere_turns:
+                fixed[mm.region == k] = reg.ampere_turns / reg.area_m2
+        self.fixed_density = fixed
+        # Dirichlet dofs: the axis always; box sides unless natural
+        d = geometry.domain
+        tol = 1e-9
+
+        def on_dirichlet(x):
+            r, z = x
+            hit = r < tol
+            if "outer" not in d.natural:
+                hit |= r > d.r_max_m - tol
+            if "bottom" not in d.natural:
+                hit |= z < d.z_min_m + tol
+            if "top" not in d.natural:
+                hit |= z > d.z_max_m - tol
+            return hit
+
+        facets = basis0.mesh.facets_satisfying(on_dirichlet, boundaries_only=True)
+        self.dirichlet = basis0.get_dofs(facets).all()
+        # the moving (armature) elements and the eggshell weight for the Maxwell-stress force
+        self.moving_elements = np.isin(mm.region, [k for k, r in enumerate(geometry.regions) if r.moves])
+        self._pattern()
+        self._config: _Config | None = None
+        self.solves = 0
+
+    # -- sparsity pattern and scatter --------------------------------------------------------
+    def _pattern(self):
+        n = self.ndofs
+        rows = np.repeat(self.dofs[:, None, :], 6, axis=1)  # (6, 6, nel): row = dof k
+        cols = np.repeat(self.dofs[None, :, :], 6, axis=0)
+        key = rows.ravel().astype(np.int64) * n + cols.ravel()
+        uniq, inv = np.unique(key, return_inverse=True)
+        self._scatter = inv
+        r = uniq // n
+        c = uniq % n
+        self._indices = c.astype(np.int32)
+        self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=n))]).astype(np.int32)
+        self._nnz = len(uniq)
+        isdir = np.zeros(n, dtype=bool)
+        isdir[self.dirichlet] = True
+        self._dir_mask = isdir[r] | isdir[c]
+        self._dir_diag = np.flatnonzero(isdir[r] & (r == c))
+        self._isdir = isdir
+
+    def _assemble_source(self, cfg: _Config, density: np.ndarray) -> np.ndarray:
+        sel = np.flatnonzero(density)
+        if sel.size == 0:
+            return np.zeros(self.ndofs)
+        local = cfg.phi[:, sel] * (cfg.dx[sel] * density[sel, None])[None]
+        return _scatter_vector(self, local, sel)
+
+    def config(self, x_m: float) -> _Config:
+        """Quadrature data at gap ``x_m`` (cached for the last gap asked for)."""
+        if self._config is None or self._config.x_m != x_m:
+            self._config = _Config(self, x_m)
+        return self._config
+
+    # -- material evaluation -----------------------------------------------------------------
+    def _nu(self, b2: np.ndarray):
+        nu = np.full_like(b2, NU_0)
+        dnu = np.zeros_like(b2)
+        s = self.steel
+        nu[s], dnu[s] = self.material.nu_of_b2(b2[s])
+        return nu, dnu
+
+    def _energy_density(self, b2: np.ndarray) -> np.ndarray:
+        w = b2 * (NU_0 / 2)
+        s = self.steel
+        w[s] = self.material.energy_density(np.sqrt(b2[s]))
+        return w
+
+    def _grad(self, cfg: _Config, u: np.ndarray) -> np.ndarray:
+        ue = u[self.dofs]  # (6, nel)
+        return np.einsum("ke,kdeq->deq", ue, cfg.G)  # (2, nel, nq)
+
+    def _energy(self, cfg: _Config, u: np.ndarray, f: np.ndarray) -> float:
+        g = self._grad(cfg, u)
+        b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r**2
+        return float(np.sum(cfg.dx * cfg.r * self._energy_density(b2)) - f @ u)
+
+    # -- Newton --------------------------------------------------------------------------------
+    def solve(self, i_A: float, x_m: float, u0: np.ndarray | None = None) -> Solution:
+        """Solve one operating point.
+
+        Parameters
+        ----------
+        i_A : float
+            Coil current [A].
+        x_m : float
+            Working air gap [m]; must lie in the geometry's stroke range.
+        u0 : ndarray, optional
+            Warm start (a previous solution's ``u``; any position).
+
+        Raises
+        ------
+        SolverError
+            When Newton does not converge (with the residual history) or the input is invalid.
+        """
+        if not np.isfinite(i_A) or not np.isfinite(x_m):
+            raise SolverError(f"current and gap must be finite, got i = {i_A!r} A, x = {x_m!r} m")
+        st = self.geometry.stroke
+        if not st.min_m - 1e-12 <= x_m <= st.max_m + 1e-12:
+            raise SolverError(
+                f"gap x = {x_m * 1e3:g} mm is outside the stroke {st.min_m * 1e3:g}..{st.max_m * 1e3:g} mm"
+            )
+        cfg = self.config(x_m)
+        f = i_A * cfg.f_coil + cfg.f_fixed
+        u = np.zeros(self.ndofs) if u0 is None else np.array(u0, dtype=float)
+        u[self.dirichlet] = 0.0
+        fnorm = np.linalg.norm(f[~self._isdir])
+        history = []
+        it = 0
+        self.solves += 1
+        if fnorm == 0.0:
+            u[:] = 0.0
+        else:
+            energy = self._energy(cfg, u, f)
+            for it in range(1, NEWTON_MAXIT + 1):
+                K, res = self._tangent(cfg, u, f)
+                rnorm = np.linalg.norm(res[~self._isdir]) / fnorm
+                history.append(rnorm)
+                if rnorm < NEWTON_RTOL:
+                    it -= 1
+                    break
+                du = spsolve(K, -res)
+                # Armijo backtracking on the convex energy
+                slope = res @ du
+                step = 1.0
+                for _ in range(30):
+                    trial = u + step * du
+                    e_trial = self._energy(cfg, trial, f)
+                    if e_trial <= energy + 1e-4 * step * slope or step < 1e-8:
+                        break
+                    step *= 0.5
+                u, energy = trial, e_trial
+                if step * np.linalg.norm(du) <= 1e-12 * max(np.linalg.norm(u), 1e-30) and rnorm < 1e-6:
+                    break
+            else:
+                raise SolverError(
+                    f"Newton did not converge at i = {i_A:g} A, x = {x_m * 1e3:g} mm after {NEWTON_MAXIT} "
+                    f"iterations; relative residuals: {', '.join(f'{h:.2e}' for h in history)}"
+                )
+        psi = float(cfg.psi_weights @ u)
+        w_co = -2 * np.pi * self._energy(cfg, u, f) if fnorm else 0.0
+        dens = i_A * self.coil_density_per_A + self.fixed_density
+        F_co = self._force_virtual_work(cfg, u, dens, self.mesh.dr_dx, self.mesh.dz_dx)
+        F_st = self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
+        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history)
+
+    def _tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
+        g = self._grad(cfg, u)  # (2, nel, nq)
+        r2 = cfg.r**2
+        b2 = (g[0] ** 2 + g[1] ** 2) / r2
+        nu, dnu = self._nu(b2)
+        G = cfg.G  # (6, 2, nel, nq)
+        gG = np.einsum("deq,kdeq->keq", g, G)  # (6, nel, nq): g . grad phi_k
+        a = cfg.w_over_r * nu
+        c = cfg.w_over_r * 2 * dnu / r2
+        K = np.einsum("kdeq,ldeq,eq->kle", G, G, a) + np.einsum("keq,leq,eq->kle", gG, gG, c)
+        res_loc = np.einsum("keq,eq->ke", gG, a)
+        res = np.bincount(self.dofs.ravel(), weights=res_loc.ravel(), minlength=self.ndofs) - f
+        data = np.bincount(self._scatter, weights=K.ravel(), minlength=self._nnz)
+        data[self._dir_mask] = 0.0
+        data[self._dir_diag] = 1.0
+        res[self._isdir] = 0.0
+        A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.ndofs, self.ndofs))
+        return A, res
+
+    def _eggshell(self, cfg: _Config) -> np.ndarray:
+        """Vertex weight g: 1 on the armature, 0 on all other bodies, falling across the air."""
+        mm = self.mesh
+        nv = mm.n_vertices
+        g = np.full(nv, np.nan)
+        body = ~self.moving_elements & (mm.region >= 0)
+        # air regions listed as polygons (material air, e.g. the ring) count as air
+        air_regions = [k for k, r in enumerate(self.geometry.regions) if r.material == "air" and not r.moves]
+        body &= ~np.isin(mm.region, air_regions)
+        g[mm.t[:, body].ravel()] = 0.0
+        g[mm.t[:, self.moving_elements].ravel()] = 1.0
+        free = np.isnan(g)
+        # distance of free (air) vertices to the armature's vertices, capped by the layer thickness
+        arm_v = np.unique(mm.t[:, self.moving_elements])
+        from scipy.spatial import cKDTree
+
+        d, _ = cKDTree(cfg.p[:, arm_v].T).query(cfg.p[:, free].T)
+        g[free] = np.clip(1.0 - d / EGGSHELL_M, 0.0, 1.0)
+        return g
+
+    def _force_virtual_work(self, cfg, u, density, vr, vz) -> float:
+        """dPi/dx at fixed nodal values for vertex velocity (vr, vz): the force closing the gap [N].
+
+        ``density`` is the current density per element [A/m^2] of this solve.
+        """
+        L, dr_q = cfg.velocity_L(vr, vz)
+        g = self._grad(cfg, u)
+        r = cfg.r
+        b2 = (g[0] ** 2 + g[1] ** 2) / r**2
+        nu, _ = self._nu(b2)
+        w = self._energy_density(b2)
+        trL = L[0, 0] + L[1, 1]  # (nel,)
+        dg = -np.einsum("jie,jeq->ieq", L, g)  # -L^T g
+        db2 = 2 * (g[0] * dg[0] + g[1] * dg[1]) / r**2 - 2 * b2 * dr_q / r
+        u_q = np.einsum("ke,keq->eq", u[self.dofs], cfg.phi)
+        integrand = trL[:, None] * (r * w - density[:, None] * u_q) + dr_q * w + r * nu / 2 * db2
+        return float(2 * np.pi * np.sum(cfg.dx * integrand))
+
+
+# -- module-level conveniences -------------------------------------------------------------------
+_SOLVERS: dict = {}
+
+
+def get_solver(geometry: Geometry, material: BHCurve, mesh_size: float = 1.0) -> Solver:
+    """A cached :class:`Solver` for (geometry, material, mesh_size) in this process."""
+    key = (id(geometry), geometry.sha256, id(material), material.sha256, float(mesh_size))
+    if key not in _SOLVERS:
+        if len(_SOLVERS) > 4:
+            _SOLVERS.clear()
+        _SOLVERS[key] = Solver(geometry, material, mesh_size)
+    return _SOLVERS[key]
+
+
+def solve_point(geometry: Geometry, material: BHCurve, i_A: float, x_m: float, mesh_size: float = 1.0) -> Solution:
+    """Solve one operating point (current ``i_A`` [A], gap ``x_m`` [m]) with a cached solver."""
+    return get_solver(geometry, material, mesh_size).solve(i_A, x_m)
+
+
+def sweep_currents(geometry: Geometry, material: BHCurve, x_m: float, i_A, mesh_size: float = 1.0) -> dict:
+    """Psi and F at one gap for a list of currents, warm-starting along the list.
+
+    Parameters
+    ----------
+    geometry, material : the solenoid and its steel
+    x_m : float
+        Gap [m].
+    i_A : array-like, shape (n,)
+        Currents [A] (any order; sorted ascending gives the best warm starts).
+    mesh_size : float
+
+    Returns
+    -------
+    dict of ndarray, shape (n,)
+        ``psi_Wb``, ``force_N`` (co-energy), ``force_stress_N``, ``coenergy_J``, ``newton_iterations``.
+    """
+    solver = get_solver(geometry, material, mesh_size)
+    i_A = np.asarray(i_A, dtype=float)
+    out = {k: np.zeros(len(i_A)) for k in ("psi_Wb", "force_N", "force_stress_N", "coenergy_J", "newton_iterations")}
+    u = None
+    for k, i in enumerate(i_A):
+        sol = solver.solve(float(i), x_m, u0=u)
+        u = sol.u if i != 0 else None
+        out["psi_Wb"][k] = sol.psi_Wb
+        out["force_N"][k] = sol.force_coenergy_N
+        out["force_stress_N"][k] = sol.force_stress_N
+        out["coenergy_J"][k] = sol.coenergy_J
+        out["newton_iterations"][k] = sol.newton_iterations
+    return out
+
+
+# -- plotting --------------------------------------------------------------------------------------
+def plot_field(solver: Solver, sol: Solution, path, n_lines: int = 30) -> None:
+    """Draw flux lines (contours of u = rA) and |B| over the geometry into a PNG file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.tri import Triangulation
+
+    cfg = solver.config(sol.x_m)
+    p = cfg.p * 1e3
+    tri = Triangulation(p[0], p[1], solver.mesh.t.T)
+    g = solver._grad(cfg, sol.u)
+    B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r
+    Bel = B.mean(axis=1)
+    fig, ax = plt.subplots(figsize=(6, 8))
+    tpc = ax.tripcolor(tri, facecolors=Bel, cmap="viridis", shading="flat")
+    fig.colorbar(tpc, ax=ax, label="|B| [T]")
+    u_v = sol.u[: solver.mesh.n_vertices]
+    if np.ptp(u_v) > 0:
+        ax.tricontour(tri, u_v, levels=n_lines, colors="w", linewidths=0.5)
+    for reg in solver.geometry.regions:
+        poly = reg.polygon_at(sol.x_m) * 1e3
+        ax.plot(*np.vstack([poly, poly[:1]]).T, "k-", lw=0.6)
+    ax.set_xlim(0, min(40, p[0].max()))
+    d = solver.geometry.domain
+    zc = [reg.polygon_at(sol.x_m)[:, 1] for reg in solver.geometry.regions]
+    zlo, zhi = min(z.min() for z in zc) * 1e3, max(z.max() for z in zc) * 1e3
+    ax.set_ylim(max(d.z_min_m * 1e3, zlo - 8), min(d.z_max_m * 1e3, zhi + 8))
+    ax.set_aspect("equal")
+    ax.set_xlabel("r [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.set_title(
+        f"{solver.geometry.name}: i = {sol.i_A:g} A, x = {sol.x_m * 1e3:g} mm\n"
+        f"Psi = {sol.psi_Wb * 1e3:.2f} mWb, F = {sol.force_N:.2f} N"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# -- command line ----------------------------------------------------------------------------------
+def add_cli(sub) -> None:
+    """Register ``solenoid-fmu solve``."""
+    p = sub.add_parser("solve", help="solve one operating point: flux linkage and force")
+    p.add_argument("--x-mm", type=float, required=True, help="working air gap [mm]")
+    p.add_argument("--i-A", type=float, required=True, help="coil current [A]")
+    p.add_argument("--geometry", help="solenoid TOML (default: packaged PS45)")
+    p.add_argument("--material", help="B(H) CSV H_A_per_m,B_T (default: literature 9SMnPb28)")
+    p.add_argument("--mesh-size", type=float, default=1.0, help="mesh-size scale (default 1.0; 0.5 = finer)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", help="write flux lines and |B| to this PNG")
+    p.set_defaults(func=_cli_solve)
+
+
+def _cli_solve(args) -> int:
+    geom = load_geometry(args.geometry)
+    mat = load_material(args.material)
+    t0 = time.perf_counter()
+    solver = Solver(geom, mat, args.mesh_size)
+    sol = solver.solve(args.i_A, args.x_mm * 1e-3)
+    elapsed = time.perf_counter() - t0
+    if args.plot:
+        plot_field(solver, sol, args.plot)
+    if args.json:
+        print(json.dumps(sol.as_dict()))
+    else:
+        print(f"{geom.name}: i = {args.i_A:g} A, x = {args.x_mm:g} mm  ({elapsed:.2f} s incl. mesh)")
+        print(f"  Psi                = {sol.psi_Wb * 1e3:.4f} mWb")
+        print(f"  F (co-energy)      = {sol.force_coenergy_N:.3f} N")
+        print(f"  F (Maxwell stress) = {sol.force_stress_N:.3f} N")
+        print(f"  Newton iterations  = {sol.newton_iterations}")
+        if args.plot:
+            print(f"  field plot: {args.plot}")
+    return 0
+
+
+__all__ = ["Solver", "Solution", "solve_point", "sweep_currents", "get_solver", "plot_field", "MU_0"]
