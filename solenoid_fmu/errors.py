@@ -59,3 +59,7 @@ class MapsError(SolenoidError):
 
 class FmuInputError(SolenoidError):
     """An FMU or model input is invalid (NaN, R <= 0, unknown drive mode)."""
+
+
+class FmuBuildError(SolenoidError):
+    """An FMU cannot be built or fails validation (unknown backend, exporter failure, problems listed)."""

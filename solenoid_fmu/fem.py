@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import splu
 
 from .errors import SolverError
 from .geometry import Geometry, load_geometry
@@ -98,7 +98,7 @@ class _Config:
         self.dx = basis.dx  # (nel, nq) quadrature weight * |detJ|
         self.r = basis.mapping.F(basis.X)[0]  # (nel, nq) radius of each quadrature point
         self.G = np.stack([basis.basis[k][0].grad for k in range(6)], axis=0)  # (6, 2, nel, nq)
-        self.phi = np.stack([basis.basis[k][0].value for k in range(6)], axis=0)  # (6, nel, nq)
+        self.phi = np.stack([np.asarray(basis.basis[k][0]) for k in range(6)], axis=0)  # (6, nel, nq)
         self.w_over_r = self.dx / self.r
         # element Jacobians of the affine map and their x-derivative along the morph velocity
         t = basis.mesh.t  # skfem may reorder the vertices within each element: use its order
@@ -227,6 +227,7 @@ class Solver:
         self._dir_mask = isdir[r] | isdir[c]
         self._dir_diag = np.flatnonzero(isdir[r] & (r == c))
         self._isdir = isdir
+        self._spd = _SPDSolver(self._indptr, self._indices, n)
 
     def _assemble_source(self, cfg: _Config, density: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(density)
@@ -308,7 +309,7 @@ class Solver:
                 if rnorm < NEWTON_RTOL:
                     it -= 1
                     break
-                du = spsolve(K, -res)
+                du = self._spd.solve(K.data, K.indices, K.indptr, -res)
                 # Armijo backtracking on the convex energy
                 slope = res @ du
                 step = 1.0
@@ -330,7 +331,10 @@ class Solver:
         w_co = -2 * np.pi * self._energy(cfg, u, f) if fnorm else 0.0
         dens = i_A * self.coil_density_per_A + self.fixed_density
         F_co = self._force_virtual_work(cfg, u, dens, self.mesh.dr_dx, self.mesh.dz_dx)
-        F_st = self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
+        if self.moving_elements.any():
+            F_st = self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
+        else:
+            F_st = 0.0
         return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history)
 
     def _tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
@@ -389,6 +393,50 @@ class Solver:
         u_q = np.einsum("ke,keq->eq", u[self.dofs], cfg.phi)
         integrand = trL[:, None] * (r * w - density[:, None] * u_q) + dr_q * w + r * nu / 2 * db2
         return float(2 * np.pi * np.sum(cfg.dx * integrand))
+
+
+class _SPDSolver:
+    """Direct solver for the SPD Newton systems of one sparsity pattern.
+
+    With ``pypardiso`` (MKL PARDISO, x86_64) the symbolic analysis (fill-reducing ordering) runs
+    once per pattern and each Newton step does only the numeric Cholesky factorization and the
+    solve (~0.05 s for 17k unknowns). Without it, SuperLU in symmetric mode (diagonal pivoting,
+    minimum-degree ordering of A^T + A), several times slower.
+    """
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
+        self.n = n
+        rows = np.repeat(np.arange(n), np.diff(indptr))
+        self.upper = indices >= rows
+        cnt = np.bincount(rows[self.upper], minlength=n)
+        self.u_indptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int32)
+        self.u_indices = indices[self.upper].astype(np.int32)
+        self._ps = None
+        if _pardiso is not None:
+            self._ps = _pardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
+            self._analysed = False
+
+    def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
+        if self._ps is None:
+            K = sp.csc_matrix((data, indices, indptr), shape=(self.n, self.n))  # symmetric: CSR = CSC^T
+            lu = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            return lu.solve(b)
+        A = sp.csr_matrix((data[self.upper], self.u_indices, self.u_indptr), shape=(self.n, self.n))
+        A.has_sorted_indices = True
+        if not self._analysed:
+            self._ps.set_phase(11)
+            self._ps._call_pardiso(A, b)
+            self._analysed = True
+        self._ps.set_phase(22)
+        self._ps._call_pardiso(A, b)
+        self._ps.set_phase(33)
+        return self._ps._call_pardiso(A, b)
+
+
+try:  # optional accelerator, see _SPDSolver
+    import pypardiso as _pardiso
+except ImportError:  # pragma: no cover - depends on the platform
+    _pardiso = None
 
 
 # -- module-level conveniences -------------------------------------------------------------------

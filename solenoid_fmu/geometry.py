@@ -338,8 +338,6 @@ def check_geometry(geom: Geometry) -> list[str]:
     names = [r.name for r in geom.regions]
     if geom.coil.region not in names:
         problems.append(f"coil: region '{geom.coil.region}' is not defined")
-    if not geom.moving:
-        problems.append("no moving region (set moves = true on the armature)")
 
     def shape(reg: Region, x_m: float):
         return Polygon(reg.polygon_at(x_m))
