@@ -31,6 +31,7 @@ from solenoid_fmu.maps import (
     DEFAULT_NX,
     InlineExecutor,
     build_maps,
+    default_currents,
     default_positions,
     round_trip_error,
     save_maps,
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 
     geometry, material = load_geometry(), load_material()
     x_all = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, DEFAULT_NX)
-    i_all = np.linspace(0.0, DEFAULT_CURRENT_FACTOR * geometry.coil.max_current_A, DEFAULT_NI)
+    i_all = default_currents(DEFAULT_CURRENT_FACTOR * geometry.coil.max_current_A, DEFAULT_NI)
     cores = os.cpu_count() or 1
     print(f"PS45 default map: {len(x_all)} positions x {len(i_all)} currents = {len(x_all) * len(i_all)} "
           f"operating points, mesh size {args.mesh_size}, {cores} cores")

@@ -563,6 +563,9 @@ def _cli_solve(args) -> int:
     sol = solver.solve(args.i_A, args.x_mm * 1e-3)
     elapsed = time.perf_counter() - t0
     if args.plot:
+        from pathlib import Path
+
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
         plot_field(solver, sol, args.plot)
     if args.json:
         print(json.dumps(sol.as_dict()))

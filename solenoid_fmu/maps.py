@@ -29,10 +29,11 @@ working gap x).
 
 Interpolation conventions (written into ``maps.json`` under ``"interpolation"``):
 
-- (i, x) tables: along i a monotone cubic Hermite interpolant (slopes of the not-a-knot cubic
-  spline, limited by the Hyman filter ``0 <= d <= 3 min(adjacent secants)``, so Psi(i) stays strictly
-  increasing) for Psi; for F a not-a-knot cubic spline over the column's own Psi (F(Psi) is smooth
-  where F(i) has the saturation knee); along x a not-a-knot cubic spline for both.
+- (i, x) tables: along i a monotone cubic Hermite interpolant for Psi (slopes from a not-a-knot
+  cubic spline of the secant inductance Psi / i, limited by the Hyman filter
+  ``0 <= d <= 3 min(adjacent secants)``, so Psi(i) stays strictly increasing); for F a not-a-knot
+  cubic spline of F / i^2 times i^2 (exact F ~ i^2 at low currents, no ringing from the saturation
+  knee); along x a not-a-knot cubic spline for both.
 - (Psi, x) tables: bilinear (what a real-time model and Modelica ``CombiTable2D`` with
   ``LinearSegments`` do). ``i_f`` at the flux grid nodes is the exact inverse of the Psi(i)
   interpolant above, so the round trip Psi -> i_f -> Psi is exact on the nodes; the flux grid is made
@@ -52,7 +53,6 @@ import math
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MapsError, SolenoidError
+from .fileio import atomic_write_bytes
 
 __all__ = [
     "SCHEMA",
@@ -70,6 +71,7 @@ __all__ = [
     "InlineExecutor",
     "build_maps",
     "default_positions",
+    "default_currents",
     "invert_maps",
     "save_maps",
     "load_maps",
@@ -116,11 +118,12 @@ ROUND_TRIP_TARGET = 5e-4
 _NPSI_CANDIDATES = (101, 201, 401, 801, 1601, 3201)
 
 INTERPOLATION = {
-    "psi_ix_Wb": "monotone cubic Hermite in i (spline slopes, Hyman filter); not-a-knot cubic spline in x",
-    "force_ix_N": "per x column a not-a-knot cubic spline of F over the column's Psi(i); "
+    "psi_ix_Wb": "monotone cubic Hermite in i (slopes from a spline of Psi / i, Hyman filter); "
+                 "not-a-knot cubic spline in x",
+    "force_ix_N": "per x column F = i^2 g(i), g a not-a-knot cubic spline of F / i^2 (g(0) = g(i_1)); "
                   "not-a-knot cubic spline in x",
     "i_f_A": "bilinear in (psi, x); nodes are the exact inverse of the psi_ix_Wb interpolant",
-    "force_N": "bilinear in (psi, x); nodes = the force column's spline over Psi at the node",
+    "force_N": "bilinear in (psi, x); nodes = the force_ix_N interpolant at i_f along the column",
     "extrapolation": "linear from the last two sweep points of each x column (flagged in 'extrapolated')",
 }
 
@@ -185,7 +188,13 @@ class CharacteristicMaps:
             raise MapsError(_problem_message("CharacteristicMaps", problems))
         for name, arr in arrays.items():
             object.__setattr__(self, name, arr)
-        object.__setattr__(self, "metadata", json.loads(json.dumps(self.metadata, allow_nan=False)))
+        try:
+            meta = json.loads(json.dumps(self.metadata, allow_nan=False))
+        except (TypeError, ValueError) as exc:
+            raise MapsError(f"CharacteristicMaps: metadata must be JSON data without NaN: {exc}") from None
+        if not isinstance(meta, dict):
+            raise MapsError("CharacteristicMaps: metadata must be a dict")
+        object.__setattr__(self, "metadata", meta)
 
     @property
     def name(self) -> str:
@@ -225,7 +234,7 @@ class InlineExecutor(cf.Executor):
         future: cf.Future = cf.Future()
         try:
             future.set_result(fn(*args, **kwargs))
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller through the future
+        except Exception as exc:  # handed to the caller through the future, as other executors do
             future.set_exception(exc)
         return future
 
@@ -322,23 +331,30 @@ def _first_non_increasing(values: np.ndarray) -> int | None:
 # --------------------------------------------------------------------------------------------
 
 
-def _hyman_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Node slopes for a monotone cubic Hermite interpolant of strictly increasing columns.
+def _psi_slopes(i_A: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Node slopes dPsi/di for a monotone cubic Hermite interpolant of Psi(i) per column.
 
-    Spline slopes (4th-order accurate where the data are smooth), limited to
-    ``0 <= d_k <= 3 min(S_{k-1}, S_k)`` (Hyman 1983), which keeps every cubic piece increasing.
+    The slopes come from a not-a-knot cubic spline of the secant inductance L = Psi / i
+    (``L(0) := L(i_1)``; dPsi/di = L + i dL/di): L is flat in the linear-iron range and bends only
+    at the saturation knee, so the spline does not ring between the origin and the knee as a spline
+    of Psi itself does. The slopes are then limited to ``0 <= d_k <= 3 min(S_{k-1}, S_k)``
+    (Hyman 1983, S the secants), which keeps every cubic piece increasing.
 
     Parameters
     ----------
-    x : ndarray, shape (n,)
-        Abscissae, strictly increasing.
-    y : ndarray, shape (n, m)
-        Ordinates, each column strictly increasing.
+    i_A : ndarray, shape (n,)
+        Currents [A], strictly increasing, ``i_A[0] == 0``.
+    psi : ndarray, shape (n, m)
+        Flux linkage [Wb], each column strictly increasing.
     """
     from scipy.interpolate import CubicSpline
 
-    d = CubicSpline(x, y, axis=0).derivative()(x)
-    s = np.diff(y, axis=0) / np.diff(x)[:, None]
+    L = np.empty_like(psi)
+    L[1:] = psi[1:] / i_A[1:, None]
+    L[0] = L[1]
+    spline = CubicSpline(i_A, L, axis=0)
+    d = spline(i_A) + i_A[:, None] * spline.derivative()(i_A)
+    s = np.diff(psi, axis=0) / np.diff(i_A)[:, None]
     lim = np.empty_like(d)
     lim[0] = 3.0 * s[0]
     lim[-1] = 3.0 * s[-1]
@@ -351,29 +367,29 @@ def _psi_columns(maps_or_arrays) -> object:
     from scipy.interpolate import CubicHermiteSpline
 
     i_A, psi = _get(maps_or_arrays, "i_A"), _get(maps_or_arrays, "psi_ix_Wb")
-    return CubicHermiteSpline(i_A, psi, _hyman_slopes(i_A, psi), axis=0)
+    return CubicHermiteSpline(i_A, psi, _psi_slopes(i_A, psi), axis=0)
 
 
 class _ForceColumns:
-    """F along each x column as a cubic spline over the column's own flux linkage.
+    """F(i) along each x column: a not-a-knot cubic spline of g = F / i^2, and F = i^2 g(i).
 
-    F(Psi) at fixed x is smooth (about Psi^2 / 2 times the gap's reluctance slope), while F(i) carries
-    the saturation knee; so F(i, x_j) = spline_j(Psi(i, x_j)). Calling with currents gives (n, nx).
+    At low currents F grows like i^2 (linear iron); g is smooth there and finite at i = 0
+    (``g(0) := g(i_1)``), so F(0) = 0 exactly and the spline does not ring between the origin and
+    the saturation knee. Calling with currents gives (n, nx).
     """
 
     def __init__(self, maps_or_arrays, name: str = "force_ix_N"):
         from scipy.interpolate import CubicSpline
 
-        self.psi = _psi_columns(maps_or_arrays)
-        psi_ix, force_ix = _get(maps_or_arrays, "psi_ix_Wb"), _get(maps_or_arrays, name)
-        self.splines = [CubicSpline(psi_ix[:, j], force_ix[:, j]) for j in range(psi_ix.shape[1])]
-
-    def of_psi(self, j: int, psi_Wb: np.ndarray) -> np.ndarray:
-        return self.splines[j](psi_Wb)
+        i_A, force_ix = _get(maps_or_arrays, "i_A"), _get(maps_or_arrays, name)
+        g = np.empty_like(force_ix)
+        g[1:] = force_ix[1:] / (i_A[1:, None] ** 2)
+        g[0] = g[1]
+        self.g = CubicSpline(i_A, g, axis=0)
 
     def __call__(self, i_A: np.ndarray) -> np.ndarray:
-        psi = self.psi(i_A)
-        return np.stack([s(psi[:, j]) for j, s in enumerate(self.splines)], axis=1)
+        i_A = np.asarray(i_A, dtype=np.float64)
+        return i_A[:, None] ** 2 * self.g(i_A)
 
 
 def _force_columns(maps_or_arrays, name: str = "force_ix_N") -> _ForceColumns:
@@ -461,8 +477,7 @@ def force_at(maps: CharacteristicMaps, i_A, x_m, stress: bool = False) -> np.nda
     Returns
     -------
     ndarray
-        F [N]; per x column a cubic spline over the column's flux linkage Psi(i), then a cubic
-        spline in x.
+        F [N]; per x column F = i^2 g(i) with a cubic spline g, then a cubic spline in x.
     """
     i, x, shape = _query(maps, i_A, x_m)
     cols = _force_columns(maps, "force_stress_ix_N" if stress else "force_ix_N")(i)
@@ -573,7 +588,7 @@ def _invert_tables(x_m, i_A, psi_ix_Wb, force_ix_N, psi_Wb):
             hi = np.where(below, hi, mid)
         i_in = 0.5 * (lo + hi)
         i_f[inside, j] = i_in
-        force[inside, j] = force_columns.of_psi(j, p_in)
+        force[inside, j] = force_columns(i_in)[:, j]
         for side in ("low", "high"):
             sel = (psi_Wb < col[0] - tol) if side == "low" else (psi_Wb > col[-1] + tol)
             if not sel.any():
@@ -610,8 +625,8 @@ def invert_maps(
 
     Each column Psi(i) at fixed x is checked to rise strictly with i, interpolated by a monotone cubic
     Hermite interpolant and inverted exactly at every node of a regular flux grid ``psi_Wb`` (0 to the
-    max over x of Psi(i_max, x)) to give i_f(Psi, x); F(Psi, x) is the force column's cubic spline over
-    its own Psi values evaluated at the node (the same as F at i_f along the column). Flux nodes
+    max over x of Psi(i_max, x)) to give i_f(Psi, x); F(Psi, x) is the force column's interpolant (see
+    :func:`force_at`) evaluated at i_f along the same column. Flux nodes
     above a column's own data are filled by linear extrapolation from the column's last two sweep
     points and flagged in ``extrapolated``.
 
@@ -765,8 +780,14 @@ def _code_version() -> dict:
 
 
 def _source(obj) -> dict:
+    """Path (relative to the checkout when inside it, so shipped maps do not carry this machine's
+    directories), sha256 and name of a geometry or material."""
     path = getattr(obj, "source_path", None)
-    return {"path": None if path is None else str(path), "sha256": str(getattr(obj, "sha256", "") or ""),
+    if path is not None:
+        path = Path(path).resolve()
+        root = Path(__file__).resolve().parent.parent
+        path = path.relative_to(root).as_posix() if path.is_relative_to(root) else str(path)
+    return {"path": path, "sha256": str(getattr(obj, "sha256", "") or ""),
             "name": str(getattr(obj, "name", "") or "")}
 
 
@@ -800,6 +821,16 @@ def default_positions(x_min_m: float, x_max_m: float, n: int = DEFAULT_NX) -> np
     return x
 
 
+def default_currents(i_top_A: float, n: int = DEFAULT_NI, power: float = 1.5) -> np.ndarray:
+    """Default sweep currents [A]: ``i_top (k / (n - 1))^power``, k = 0 .. n - 1.
+
+    Denser at low currents, where the iron leaves its linear range and Psi(i) and F(i) bend
+    sharply (for PS45 with the literature curve the knee lies near 0.2 A); for n = 26 and
+    ``i_top = 2.5 A`` the steps grow from 0.02 A to 0.15 A.
+    """
+    return i_top_A * (np.arange(n) / (n - 1)) ** power
+
+
 def build_maps(
     geometry,
     material,
@@ -829,7 +860,8 @@ def build_maps(
         Working-gap positions [m], inside the stroke; default 15 positions over
         ``[stroke.min_m, stroke.max_m]``, graded towards small gaps (:func:`default_positions`).
     i_A : array-like, optional
-        Currents [A], starting at 0; default 26 currents from 0 to 1.25 x ``coil.max_current_A``.
+        Currents [A], starting at 0; default 26 currents from 0 to 1.25 x ``coil.max_current_A``,
+        denser at low currents (:func:`default_currents`).
     mesh_size : float
         Mesh-size factor handed to the sweep (1.0 = the FEM's default, larger = coarser).
     executor : concurrent.futures.Executor, optional
@@ -858,7 +890,7 @@ def build_maps(
     """
     stroke, coil = geometry.stroke, geometry.coil
     x_default = default_positions(stroke.min_m, stroke.max_m, DEFAULT_NX)
-    i_default = np.linspace(0.0, DEFAULT_CURRENT_FACTOR * coil.max_current_A, DEFAULT_NI)
+    i_default = default_currents(DEFAULT_CURRENT_FACTOR * coil.max_current_A, DEFAULT_NI)
     x_m = _grid(x_m, x_default, "position", "mm", 1e3)
     i_A = _grid(i_A, i_default, "current", "A", 1.0)
     if i_A[0] != 0.0:
@@ -891,17 +923,27 @@ def build_maps(
     bar = tqdm(total=ni * nx, desc="FEM sweep", unit="pt", file=sys.stderr, disable=not progress,
                dynamic_ncols=True)
     futures: dict[cf.Future, int] = {}
+    pending: set[cf.Future] = set()
+
+    def harvest(fut: cf.Future) -> None:
+        j = futures[fut]
+        try:
+            result = fut.result()
+        except SolenoidError as exc:
+            raise MapsError(f"FEM sweep at x = {x_m[j] * 1e3:.4g} mm failed: {exc}") from exc
+        psi[:, j], force[:, j], stress[:, j], newton[:, j] = _sweep_columns(result, ni, x_m[j])
+        bar.update(ni)
+        pending.discard(fut)
+
     try:
         for j, x in enumerate(x_m):
-            futures[executor.submit(sweep, geometry, material, float(x), i_A.copy(), mesh_size)] = j
-        for fut in cf.as_completed(futures):
-            j = futures[fut]
-            try:
-                result = fut.result()
-            except SolenoidError as exc:
-                raise MapsError(f"FEM sweep at x = {x_m[j] * 1e3:.4g} mm failed: {exc}") from exc
-            psi[:, j], force[:, j], stress[:, j], newton[:, j] = _sweep_columns(result, ni, x_m[j])
-            bar.update(ni)
+            fut = executor.submit(sweep, geometry, material, float(x), i_A.copy(), mesh_size)
+            futures[fut] = j
+            pending.add(fut)
+            for done in [f for f in pending if f.done()]:  # inline executors: progress, early errors
+                harvest(done)
+        for fut in cf.as_completed(list(pending)):
+            harvest(fut)
     except BaseException:
         for fut in futures:
             fut.cancel()
@@ -982,23 +1024,15 @@ def _sweep_columns(result, ni: int, x: float):
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write_bytes(path, data)
 
 
 def save_maps(maps: CharacteristicMaps, directory) -> Path:
     """Write ``maps.npz`` + ``maps.json`` into ``directory`` (created) atomically; never pickle.
 
     Each file is written under a temporary name in the same directory and renamed into place; the
-    sidecar records the npz file's sha256 so a reader can tell a mismatched pair.
+    sidecar records the npz file's sha256 (``"arrays"``) so a reader can tell a mismatched pair
+    (files without that entry, written by other tools in the shared format, are accepted).
 
     Parameters
     ----------
@@ -1071,8 +1105,8 @@ def _meta_problems(meta: dict) -> list[str]:
     if not isinstance(meta.get("provenance"), dict):
         problems.append("'provenance' must be an object")
     arrays = meta.get("arrays")
-    if not isinstance(arrays, dict) or not isinstance(arrays.get("sha256"), str):
-        problems.append("'arrays' must be an object with the sha256 of maps.npz")
+    if arrays is not None and (not isinstance(arrays, dict) or not isinstance(arrays.get("sha256"), str)):
+        problems.append("'arrays', when present, must be an object with the sha256 of maps.npz")
     return problems
 
 
@@ -1125,7 +1159,7 @@ def load_maps(directory) -> CharacteristicMaps:
         raise MapsError(_problem_message(str(json_path), problems))
     raw = npz_path.read_bytes()
     digest = hashlib.sha256(raw).hexdigest()
-    if digest != meta["arrays"]["sha256"]:
+    if "arrays" in meta and digest != meta["arrays"]["sha256"]:
         raise MapsError(
             f"{npz_path}: sha256 {digest[:12]}... does not match the {meta['arrays']['sha256'][:12]}... "
             f"recorded in {JSON_NAME}; the two files were not written together"
@@ -1564,9 +1598,11 @@ def add_cli(subparsers) -> None:
     p.add_argument("--geometry", metavar="G.toml", help="solenoid geometry (default: packaged PS45)")
     p.add_argument("--material", metavar="M.csv", help="B(H) curve (default: literature 9SMnPb28)")
     p.add_argument("--x-mm", metavar="START:STOP:N", type=lambda t: parse_range(t, "--x-mm"),
-                   help="positions in mm (default: the whole stroke, 15 positions)")
+                   help="evenly spaced positions in mm (default: the whole stroke, 15 positions "
+                        "graded towards small gaps)")
     p.add_argument("--i-A", metavar="START:STOP:N", type=lambda t: parse_range(t, "--i-A"),
-                   help="currents in A, START must be 0 (default: 0 to 1.25 x max current, 26 currents)")
+                   help="evenly spaced currents in A, START must be 0 (default: 0 to 1.25 x max "
+                        "current, 26 currents, denser at low currents)")
     p.add_argument("--mesh-size", metavar="H", type=_positive_float, default=1.0,
                    help="mesh-size factor (default 1.0; larger is coarser)")
     p.add_argument("--workers", metavar="N", type=_positive_int, default=None,

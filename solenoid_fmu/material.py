@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MaterialError
+from .fileio import atomic_write_text
 
 MU_0 = 4e-7 * np.pi  # vacuum permeability [H/m] (the classical value; 1e-9 relative to CODATA)
 NU_0 = 1.0 / MU_0
@@ -341,17 +342,9 @@ def load_material(path: str | Path | None = None, tol: float = 0.10) -> BHCurve:
 
 def write_bh_csv(path: str | Path, H, B, comment: str = "") -> Path:
     """Write a B(H) table as CSV ``H_A_per_m,B_T`` (atomically: temp file, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with tmp.open("w", encoding="utf-8") as f:
-        for line in comment.splitlines():
-            f.write(f"# {line}\n")
-        f.write("H_A_per_m,B_T\n")
-        for h, b in zip(np.asarray(H), np.asarray(B), strict=True):
-            f.write(f"{h:.6g},{b:.6g}\n")
-    tmp.replace(path)
-    return path
+    lines = [f"# {line}" for line in comment.splitlines()] + ["H_A_per_m,B_T"]
+    lines += [f"{h:.9g},{b:.9g}" for h, b in zip(np.asarray(H), np.asarray(B), strict=True)]
+    return atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def linear_material(mu_r: float = 1.0) -> BHCurve:
