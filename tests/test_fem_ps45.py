@@ -115,3 +115,13 @@ def test_cli_bad_geometry_file_gives_clear_error(tmp_path, capsys):
     assert main(["solve", "--x-mm", "1", "--i-A", "1", "--geometry", str(bad)]) == 1
     err = capsys.readouterr().err
     assert "bad.toml" in err and "turns must be > 0" in err and "Traceback" not in err
+
+
+def test_non_convergence_raises_with_residual_history(solver, monkeypatch):
+    from solenoid_fmu import fem
+    from solenoid_fmu.errors import SolverError
+
+    monkeypatch.setattr(fem, "NEWTON_MAXIT", 2)
+    with pytest.raises(SolverError, match=r"did not converge at i = 2 A, x = 0.7 mm after 2 iterations; "
+                       r"relative residuals: 1\.00e\+00, \d"):
+        solver.solve(2.0, 0.7e-3)

@@ -127,7 +127,7 @@ def analytic_sweep(geometry, material, x_m, i_A, mesh_size=1.0):
 
 @pytest.fixture(scope="module")
 def amaps():
-    """Maps of the stand-in on the default grid (15 positions x 26 currents)."""
+    """Maps of the stand-in on the default grid (27 positions x 26 currents)."""
     return M.build_maps(FakeGeometry(), FakeMaterial(), executor=M.InlineExecutor(), progress=False,
                         sweep=analytic_sweep)
 
@@ -147,12 +147,13 @@ def test_standin_force_is_minus_coenergy_derivative():
 
 def test_default_grid_covers_stroke_and_currents(amaps):
     ni, nx, npsi = amaps.shape
-    assert (ni, nx) == (26, 15)
+    assert (ni, nx) == (26, 27)
     assert amaps.x_m[0] == pytest.approx(0.2e-3, abs=1e-15)
     assert amaps.x_m[-1] == pytest.approx(3.5e-3, abs=1e-15)
     assert amaps.i_A[0] == 0.0 and amaps.i_A[-1] == pytest.approx(2.5)
     steps = np.diff(amaps.x_m)
-    assert steps[0] < steps[-1]  # graded towards the small gaps
+    assert steps[0] < steps[nx // 2] and steps[-1] < steps[nx // 2]  # clustered at both stops
+    np.testing.assert_allclose(steps, steps[::-1], rtol=1e-9)
     assert amaps.psi_Wb[0] == 0.0
     assert amaps.psi_Wb[-1] == pytest.approx(amaps.psi_ix_Wb[-1].max(), rel=1e-15)
 
@@ -374,7 +375,7 @@ def test_save_load_identity(amaps, tmp_path):
     prov = meta["provenance"]
     assert prov["geometry"]["sha256"] == "ab" * 32 and prov["material"]["sha256"] == "cd" * 32
     assert prov["code_version"].startswith("0.") and "created_utc" in prov
-    assert prov["solver"]["operating_points"] == 26 * 15
+    assert prov["solver"]["operating_points"] == 26 * 27
     assert meta["eddy"] == {"G_eddy_S": None, "source": "not identified (the FEM is magnetostatic)"}
     with np.load(directory / "maps.npz", allow_pickle=False) as data:  # plain arrays, no pickle
         assert set(data.files) == set(M.ARRAY_UNITS)
@@ -435,7 +436,7 @@ BAD_FILES = [
     pytest.param(_x_non_monotone, None, r"grid x_m is not strictly increasing: x_m\[4\]",
                  id="x-not-monotone"),
     pytest.param(lambda a: _set(a, "psi_ix_Wb", a["psi_ix_Wb"][:-1]), None,
-                 r"psi_ix_Wb has shape \(25, 15\), expected \(26, 15\)", id="wrong-shape"),
+                 r"psi_ix_Wb has shape \(25, 27\), expected \(26, 27\)", id="wrong-shape"),
     pytest.param(None, lambda m: m["units"].__setitem__("x_m", "mm"), "units of x_m must be 'm'",
                  id="wrong-unit"),
     pytest.param(lambda a: _set(a, "i_f_A", a["i_f_A"].astype(object)), None, "without pickle|dtype",
@@ -689,3 +690,21 @@ def test_cli_sweeps_a_small_fem_map(tmp_path, capsys):
     assert maps.metadata["provenance"]["solver"]["executor"] == "InlineExecutor"
     assert (out / "maps.mat").is_file()
     assert "wrote" in capsys.readouterr().out
+
+
+def test_shipped_ps45_map_round_trip_between_positions():
+    """The shipped map (maps/ps45-literature): Psi -> i_f -> Psi within 0.1 % at the midpoints
+    between all positions (the model reads the maps linearly in x), and built from the packaged
+    PS45 geometry and literature steel."""
+    from pathlib import Path
+
+    from solenoid_fmu.geometry import load_geometry
+    from solenoid_fmu.material import load_material
+
+    shipped = M.load_maps(Path(__file__).resolve().parents[1] / "maps" / "ps45-literature")
+    mid = 0.5 * (shipped.x_m[1:] + shipped.x_m[:-1])
+    assert M.round_trip_error(shipped, x_m=mid) < 1e-3
+    assert M.round_trip_error(shipped) < 1e-3
+    prov = shipped.metadata["provenance"]
+    assert prov["geometry"]["sha256"] == load_geometry().sha256
+    assert prov["material"]["sha256"] == load_material().sha256
