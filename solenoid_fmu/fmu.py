@@ -731,8 +731,11 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
 
     Notes
     -----
-    The measured inputs of sample k are held from t_k to t_{k+1}; the simulated sample k+1 is
-    the FMU's output after that step; sample 0 is the output after initialization.
+    The simulated sample k+1 is the FMU's output after the step from t_k to t_{k+1}; over that
+    step the input is held at the current of sample k+1 (current drive: the flux follows the
+    current, so the output at t_{k+1} must see i at t_{k+1}) or at the mean of the voltages of
+    samples k and k+1 (voltage drive: the trapezoid that paper eq. 4 integrates), with the gap of
+    sample k+1. Sample 0 is the output after initialization.
     """
     from ctypes import byref
 
@@ -762,6 +765,10 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     u = np.asarray(rec.voltage_V if drive == "voltage" else rec.current_A, dtype=float)
     if R_ohm is None:
         R_ohm = rec.coil_resistance_ohm
+    # Input held over the step t_k -> t_k+1 (whose output is sample k+1): the current at the end of
+    # the step in current drive (the flux follows it algebraically, or nearly); the mean of the two
+    # samples in voltage drive (the flux integrates it: the trapezoid of paper eq. 4).
+    u_step = 0.5 * (u[:-1] + u[1:]) if drive == "voltage" else u[1:]
 
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
@@ -810,7 +817,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
             fmu.exitInitializationMode()
             out[0] = fmu.getReal(out_vr)
             for k in range(n - 1):
-                fmu.setReal(in_vr, [float(u[k]), float(x[k])])
+                fmu.setReal(in_vr, [float(u_step[k]), float(x[k + 1])])
                 fmu.doStep(float(t[k]), float(t[k + 1] - t[k]))
                 out[k + 1] = fmu.getReal(out_vr)
             fmu.terminate()

@@ -367,11 +367,12 @@ def _measured(tab, kind, drive, n=400, h=2e-4):
     model.initialize(u[0], X_M)
     i, U, f = [model.i_A], [model.U_V], [model.F_N]
     for k in range(n - 1):
-        model.step(h, u[k], X_M)
+        # the playback's hold rule: mean of the two voltage samples, or the current at the step's end
+        model.step(h, 0.5 * (u[k] + u[k + 1]) if drive == "voltage" else u[k + 1], X_M)
         i.append(model.i_A)
         U.append(model.U_V)
         f.append(model.F_N)
-    # the drive column holds the input sampled at t_k (held until t_k+1), as the rig records it
+    # the drive column holds the input samples themselves
     if drive == "voltage":
         U = u
     else:
