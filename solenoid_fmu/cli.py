@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "recordings",
     "rig",
     "identify",
+    "eddy",
     "fmu",
     "validate",
     "diagnose",

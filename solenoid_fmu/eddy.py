@@ -1,0 +1,158 @@
+"""The eddy-current parameter G_eddy from fast recordings (paper sec. 5, fig. 14).
+
+The model's eddy term (paper eq. 2 with the parameter the paper calls L_eddy) is
+``i_eddy = G_eddy * dPsi/dt``. From an ``eddy`` recording (triangular currents at several rates):
+
+- Psi(t) by paper eq. 4 (offset removed, :func:`solenoid_fmu.recordings.flux_linkage`), and the
+  induced voltage e = dPsi/dt;
+- the field-generating current from the maps, i_f(Psi, x);
+- i_eddy = i - i_f(Psi, x), regressed on e through the origin: G_eddy = sum(e i_eddy) / sum(e^2),
+  per recording (one rate each) and pooled, each with its R^2.
+
+When the per-rate fits disagree (the conductance falls with rate: eddy currents with more than
+one time constant) or the pooled R^2 is poor, a single G_eddy describes the data badly; the result
+says so (``single_term_ok`` False and a message) rather than hiding it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SolenoidError
+
+#: Relative spread of the per-rate conductances above which one G_eddy is a poor description.
+RATE_SPREAD_LIMIT = 0.2
+#: Pooled R^2 below which one G_eddy is a poor description.
+R2_LIMIT = 0.9
+
+
+@dataclass
+class EddyFit:
+    """Result of :func:`fit_eddy` (SI units).
+
+    Attributes
+    ----------
+    G_eddy_S : float
+        Pooled conductance [S].
+    r2 : float
+        Pooled coefficient of determination of i_eddy vs dPsi/dt.
+    per_recording : list of dict
+        ``file``, ``rate_A_per_s`` (median |di/dt| on the ramps), ``G_eddy_S``, ``r2``.
+    single_term_ok : bool
+    message : str
+    """
+
+    G_eddy_S: float
+    r2: float
+    per_recording: list = field(default_factory=list)
+    single_term_ok: bool = True
+    message: str = ""
+
+    def as_dict(self) -> dict:
+        return {"G_eddy_S": self.G_eddy_S, "r2": self.r2, "per_recording": self.per_recording,
+                "single_term_ok": self.single_term_ok, "message": self.message}
+
+
+def _fit_origin(e: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    ee = float(e @ e)
+    if ee <= 0:
+        return 0.0, 0.0
+    g = float(e @ y) / ee
+    ss = float(np.sum((y - y.mean()) ** 2))
+    r2 = 1.0 - float(np.sum((y - g * e) ** 2)) / ss if ss > 0 else 0.0
+    return g, r2
+
+
+def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
+    """Induced voltage e = dPsi/dt [V] and eddy current i - i_f(Psi, x) [A] of one recording,
+    and its current rate [A/s] (median |di/dt| where the current moves)."""
+    from .maps import i_f_at
+    from .recordings import flux_linkage
+
+    rec = recording
+    if rec.voltage_V is None:
+        raise SolenoidError(f"{rec.path}: an eddy fit needs a voltage_V column (paper eq. 4)")
+    fl = flux_linkage(rec)
+    t = np.asarray(rec.time_s, dtype=float)
+    psi = np.asarray(fl.psi_Wb, dtype=float)
+    e = np.gradient(psi, t)
+    x = np.asarray(rec.positions_m(), dtype=float)
+    i = np.asarray(rec.current_A, dtype=float) - fl.current_offset_A
+    i_f = np.sign(psi) * i_f_at(maps, np.abs(psi), x)
+    smooth = np.convolve(i, np.ones(5) / 5, mode="same") if len(i) >= 5 else i
+    di = np.abs(np.gradient(smooth, t))
+    moving = di > 0.5 * np.percentile(di, 99.5)  # ramps may be a small share of the record
+    rate = float(np.median(di[moving])) if moving.any() else 0.0
+    return e, i - i_f, rate
+
+
+def fit_eddy(recordings, maps) -> EddyFit:
+    """Fit G_eddy [S] from ``eddy`` recordings (other kinds are refused by name).
+
+    Parameters
+    ----------
+    recordings : list of path-like or Recording
+    maps : CharacteristicMaps
+        The maps of the same solenoid (i_f(Psi, x)).
+    """
+    from .recordings import Recording, read_recording
+
+    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
+    if not recs:
+        raise SolenoidError("fit_eddy needs at least one eddy recording")
+    bad = [str(r.path) for r in recs if r.kind != "eddy"]
+    if bad:
+        raise SolenoidError(f"not eddy recordings: {', '.join(bad)}")
+    per, E, Y = [], [], []
+    for rec in recs:
+        e, y, rate = eddy_samples(rec, maps)
+        g, r2 = _fit_origin(e, y)
+        per.append({"file": rec.path.name if rec.path else "", "rate_A_per_s": rate, "G_eddy_S": g, "r2": r2})
+        E.append(e)
+        Y.append(y)
+    g, r2 = _fit_origin(np.concatenate(E), np.concatenate(Y))
+    gs = np.array([p["G_eddy_S"] for p in per])
+    spread = float(np.ptp(gs) / abs(g)) if len(gs) > 1 and g != 0 else 0.0
+    ok = spread <= RATE_SPREAD_LIMIT and r2 >= R2_LIMIT
+    if ok:
+        msg = f"one G_eddy fits all rates (spread {spread:.0%}, R^2 {r2:.3f})"
+    else:
+        order = np.argsort([p["rate_A_per_s"] for p in per])
+        trend = ", ".join(f"{per[k]['rate_A_per_s']:.3g} A/s: {per[k]['G_eddy_S'] * 1e3:.3g} mS" for k in order)
+        msg = (f"a single G_eddy is a poor fit (spread {spread:.0%} over the rates, pooled R^2 {r2:.3f}): "
+               f"{trend}; the eddy currents have more than one time constant")
+    return EddyFit(g, r2, per, ok, msg)
+
+
+def add_cli(sub) -> None:
+    """Register ``solenoid-fmu eddy``."""
+    p = sub.add_parser("eddy", help="fit the eddy-current parameter G_eddy from eddy recordings (paper fig. 14)")
+    p.add_argument("recordings", nargs="+", help="eddy recordings (CSV, format v1)")
+    p.add_argument("--maps", required=True, help="maps directory of the same solenoid")
+    p.add_argument("--write", action="store_true", help="store the fitted G_eddy in the maps (maps.json eddy)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args) -> int:
+    from .maps import load_maps, save_maps
+
+    maps = load_maps(args.maps)
+    fit = fit_eddy(args.recordings, maps)
+    if args.write:
+        save_maps(maps.with_eddy(fit.G_eddy_S, source=", ".join(Path(r).name for r in args.recordings)),
+                  args.maps)
+    if args.json:
+        print(json.dumps(fit.as_dict()))
+        return 0
+    for p in fit.per_recording:
+        print(f"{p['file']:<28} {p['rate_A_per_s']:8.3g} A/s   G = {p['G_eddy_S'] * 1e3:8.4g} mS   R^2 = {p['r2']:.3f}")
+    print(f"pooled: G_eddy = {fit.G_eddy_S * 1e3:.4g} mS, R^2 = {fit.r2:.3f}")
+    print(fit.message)
+    if args.write:
+        print(f"stored in {args.maps}/maps.json")
+    return 0

@@ -1,0 +1,87 @@
+"""The eddy-current parameter fit (paper fig. 14) on recordings with a known eddy term."""
+
+import json
+
+import mapsfixture
+import numpy as np
+import pytest
+
+from solenoid_fmu.cli import main
+from solenoid_fmu.eddy import fit_eddy
+from solenoid_fmu.maps import load_maps
+from solenoid_fmu.model import SolenoidModel, load_tables
+from solenoid_fmu.recordings import make_recording, write_recording
+
+X_M = 1.5e-3
+
+
+@pytest.fixture(scope="module")
+def maps_dir(tmp_path_factory):
+    return mapsfixture.write_maps(tmp_path_factory.mktemp("eddymaps") / "m", G_eddy_S=None)
+
+
+def _triangle_recording(tab, rate, G, fs=10000.0, peak=1.0, rest=0.05, noise_V=0.0, seed=0):
+    t_ramp = peak / rate
+    t = np.arange(0.0, 2 * (2 * t_ramp) + 2 * rest, 1.0 / fs)
+    ph = np.clip(t - rest, 0, None) % (2 * t_ramp)
+    i = np.where(t < rest, 0.0, np.minimum(ph, 2 * t_ramp - ph) * rate)
+    i[t > rest + 4 * t_ramp] = 0.0
+    model = SolenoidModel(tab, {"drive_mode": "current", "R_ohm": 12.5, "G_eddy_S": G})
+    model.initialize(i[0], X_M)
+    U = [model.U_V]
+    for k in range(len(t) - 1):
+        model.step(t[k + 1] - t[k], i[k + 1], X_M)
+        U.append(model.U_V)
+    U = np.array(U) + noise_V * np.random.default_rng(seed).standard_normal(len(t))
+    return make_recording("eddy", "synthetic", t, i, voltage_V=U, position_m=X_M, coil_resistance_ohm=12.5)
+
+
+@pytest.mark.parametrize("G", [5e-3, 20e-3])
+def test_single_linear_eddy_term_recovered_within_5_percent(maps_dir, tmp_path, G):
+    tab = load_tables(maps_dir)
+    recs = [_triangle_recording(tab, r, G, noise_V=2e-3, seed=k) for k, r in enumerate((12.5, 50.0, 125.0))]
+    fit = fit_eddy(recs, load_maps(maps_dir))
+    assert fit.G_eddy_S == pytest.approx(G, rel=0.05)
+    assert fit.single_term_ok and fit.r2 > 0.9
+    rates = sorted(p["rate_A_per_s"] for p in fit.per_recording)
+    assert rates == pytest.approx([12.5, 50.0, 125.0], rel=0.05)
+
+
+def test_rate_dependent_eddy_is_reported(maps_dir, tmp_path):
+    from solenoid_fmu.rig import CampaignConfig, Effects, run_campaign
+
+    cfg = CampaignConfig(tests=("eddy",), eddy_rates_A_per_s=(12.5, 50.0, 125.0), eddy_cycles=1,
+                         eddy_sample_rate_Hz=10000.0)
+    run_campaign(load_tables(maps_dir), tmp_path / "c", effects=Effects.from_names("eddy-ladder"),
+                 campaign=cfg, seed=1, maps_dir=maps_dir)
+    files = sorted((tmp_path / "c" / "recordings").glob("*.csv"))
+    fit = fit_eddy(files, load_maps(maps_dir))
+    assert not fit.single_term_ok
+    assert "poor fit" in fit.message
+    by_rate = sorted(fit.per_recording, key=lambda p: p["rate_A_per_s"])
+    assert by_rate[0]["rate_A_per_s"] == pytest.approx(12.5, rel=0.1)
+    assert by_rate[-1]["rate_A_per_s"] == pytest.approx(125.0, rel=0.1)
+    assert by_rate[-1]["G_eddy_S"] < by_rate[0]["G_eddy_S"]  # the apparent conductance falls with rate
+
+
+def test_cli_writes_g_into_the_maps(maps_dir, tmp_path, capsys):
+    import shutil
+
+    tab = load_tables(maps_dir)
+    mdir = tmp_path / "maps"
+    shutil.copytree(maps_dir, mdir)
+    files = [write_recording(tmp_path / f"e{k}.csv", _triangle_recording(tab, r, 8e-3))
+             for k, r in enumerate((25.0, 100.0))]
+    assert main(["eddy", *map(str, files), "--maps", str(mdir), "--write", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["G_eddy_S"] == pytest.approx(8e-3, rel=0.05)
+    assert load_maps(mdir).metadata["eddy"]["G_eddy_S"] == pytest.approx(out["G_eddy_S"])
+
+
+def test_other_kinds_are_refused(maps_dir, tmp_path):
+    from solenoid_fmu.errors import SolenoidError
+
+    rec = make_recording("flux", "synthetic", np.arange(3.0), np.zeros(3), voltage_V=np.zeros(3), position_m=X_M)
+    write_recording(tmp_path / "f.csv", rec)
+    with pytest.raises(SolenoidError, match="not eddy recordings"):
+        fit_eddy([tmp_path / "f.csv"], load_maps(maps_dir))
