@@ -14,7 +14,8 @@ eddy       dPsi/dt low-pass filtered with time constants 0.1, 1 and 10 ms (a lad
            a single G_eddy is dPsi/dt itself, which the model already has): grows with rate
 heating    current times the temperature rise of a first-order thermal model driven by i^2 R,
            for thermal time constants 30 s to 20 min: grows with dissipated energy over time
-friction   sign of the armature velocity (force only): flips with the direction of motion
+friction   sign of the armature's last motion (force only): flips with the direction of
+           motion and holds while the armature stands
 sensor     a constant and the measured signal itself (offset and gain) of current, voltage, force
 material   a cubic polynomial in the normalized (Psi, x): a single-valued function of Psi and x
            alone, as a wrong B(H) curve leaves it
@@ -173,11 +174,16 @@ def features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.n
     if effect == "friction":
         if signal != "force_N":
             return None
+        if np.ptp(case.position_m) < 0.01 * scales["x_span"]:  # the armature stands: no sliding friction
+            return None
         v = _ddt(case.position_m, t)
         vs = np.nanmax(np.abs(v)) if n else 0.0
-        if vs <= 0:
-            return None
-        return np.sign(np.where(np.abs(v) > 1e-3 * vs, v, 0.0))[:, None]
+        # the direction of the last motion: friction holds its sign when the armature stops
+        moving = np.abs(v) > 1e-3 * vs
+        idx = np.where(moving, np.arange(n), -1)
+        last = np.maximum.accumulate(idx)
+        held = np.where(last >= 0, np.sign(v[np.maximum(last, 0)]), 0.0)
+        return held[:, None]
     if effect == "sensor":
         meas = case.measured.get(signal)
         if meas is None or signal == "psi_Wb":  # Psi is derived (eq. 4), its offsets are removed there
@@ -217,16 +223,18 @@ def _folds(cases: list[ResidualCase]) -> list[tuple[list, list]]:
 def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict) -> tuple[float, float, int]:
     """Held-out SSE and SS of the normalized residual of ``signal`` fitted by the union of the
     features of ``effects`` (two-fold cross-validation); (0, 0, 0) when nothing applies."""
+    feats = [[features(e, c, signal, scales) if signal in c.residuals else None for e in effects] for c in cases]
+    # an effect that applies to some recordings only gets zero columns in the others
+    widths = [next((f[j].shape[1] for f in feats if f[j] is not None), 0) for j in range(len(effects))]
     data = []
-    for c in cases:
+    for c, f in zip(cases, feats, strict=True):
         res = c.residuals.get(signal)
-        if res is None:
+        if res is None or all(X is None for X in f):
             data.append(None)
             continue
         norm = scales["range"].get(signal, max(np.ptp(res), 1e-30))
-        cols = [features(e, c, signal, scales) for e in effects]
-        cols = [X for X in cols if X is not None]
-        data.append((np.column_stack(cols), res / norm) if cols else None)
+        cols = [X if X is not None else np.zeros((len(res), w)) for X, w in zip(f, widths, strict=True) if w]
+        data.append((np.column_stack(cols), res / norm))
     sse, ss, p = 0.0, 0.0, 0
     for train, test in _folds(cases):
         Xt = [data[k][0][m] for k, m in train if data[k] is not None]

@@ -12,6 +12,8 @@ can be tested against a known answer. It is the characteristic maps from the FEM
     ``Psi(i)`` shows loops and the force follows through ``Psi``. Default major-loop half-width
     at ``Psi = 0``: 3 % of the coil's maximum current (a solid-steel solenoid).
 ``eddy-ladder`` (:class:`EddyLadder`)
+    (Without it the truth carries the maps' single linear term ``G_eddy`` of paper eq. (2), if the
+    maps have one, as the real-time model does.)
     Frequency-dependent eddy currents: instead of the single conductance ``G_eddy`` of paper
     eq. (2) (``i_eddy = G dPsi/dt``) the induced voltage ``e = dPsi/dt`` drives two or more
     conductance-inductance sections in parallel (the Foster form of an RL ladder),
@@ -695,6 +697,10 @@ class TruthModel:
         ladder = self.effects.eddy
         Gk = np.array(ladder.G_S) if ladder else np.zeros(0)
         tk = np.array(ladder.tau_s) if ladder else np.zeros(0)
+        if not ladder and (tab.G_eddy_S or 0.0) > 0.0:
+            # without the ladder the truth has the paper's single linear term of the maps (eq. 2),
+            # i_eddy = G dPsi/dt, as one section fast enough to be instantaneous (ROS2 is L-stable)
+            Gk, tk = np.array([float(tab.G_eddy_S)]), np.array([1e-6])
         nk = Gk.size
         current_mode = exc.mode == "current"
         if exc.mode not in ("current", "voltage"):
