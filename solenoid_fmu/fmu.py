@@ -134,6 +134,38 @@ VARIABLES = (
 )
 _VR = {v.name: k for k, v in enumerate(VARIABLES)}
 
+#: Variables an FMU gains when its maps carry effect sub-models (maps.json ``effects``; issue 7),
+#: appended after :data:`VARIABLES` (the base value references do not move).
+EFFECT_VARIABLES = (
+    FmuVariable("i_hyst_A", "Real", "output", "continuous", "A",
+                "hysteresis current of the play operator [A] (part of i_out_A)"),
+    FmuVariable("T_rise_K", "Real", "output", "continuous", "K",
+                "coil temperature rise since initialization [K] (heating sub-model)"),
+    FmuVariable("hysteresis_on", "Boolean", "parameter", "fixed", None,
+                "switch: magnetic hysteresis (play operator on Psi adding a current)"),
+    FmuVariable("hyst_gain", "Real", "parameter", "tunable", "1", "factor on the hysteresis current [-]"),
+    FmuVariable("eddy_ladder_on", "Boolean", "parameter", "fixed", None,
+                "switch: frequency-dependent eddy currents (R-L sections beside G_eddy)"),
+    FmuVariable("heating_on", "Boolean", "parameter", "fixed", None,
+                "switch: coil heating, R(T) = R (1 + alpha T) with a first-order thermal model"),
+    FmuVariable("C_th_J_per_K", "Real", "parameter", "fixed", "J/K", "heat capacity of the coil [J/K], > 0"),
+    FmuVariable("R_th_K_per_W", "Real", "parameter", "fixed", "K/W",
+                "thermal resistance coil to ambient [K/W], > 0"),
+    FmuVariable("alpha_per_K", "Real", "parameter", "fixed", "1/K",
+                "temperature coefficient of the coil resistance [1/K]"),
+    FmuVariable("friction_on", "Boolean", "parameter", "fixed", None,
+                "switch: friction in the force output (Dahl model in x)"),
+    FmuVariable("friction_N", "Real", "parameter", "tunable", "N", "sliding friction force [N], >= 0"),
+    FmuVariable("presliding_m", "Real", "parameter", "fixed", "m",
+                "presliding displacement of the friction model [m], > 0"),
+)
+
+
+def interface_for(tables: _model.MapTables) -> tuple:
+    """The FMU variables for these maps: :data:`VARIABLES`, plus :data:`EFFECT_VARIABLES` when
+    maps.json carries an ``effects`` section."""
+    return VARIABLES + (EFFECT_VARIABLES if tables.meta.get("effects") else ())
+
 #: SI unit definitions (exponents of the SI base units) used in modelDescription.xml.
 UNIT_DEFINITIONS = {
     "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
@@ -144,6 +176,11 @@ UNIT_DEFINITIONS = {
     "Ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
     "S": {"kg": -1, "m": -2, "s": 3, "A": 2},
     "s": {"s": 1},
+    "K": {"K": 1},
+    "1/K": {"K": -1},
+    "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
+    "K/W": {"kg": -1, "m": -2, "s": 3, "K": 1},
+    "1": {},
 }
 #: Display units offered to importers: (name, factor) with display = factor * value.
 DISPLAY_UNITS = {"m": (("mm", 1000.0),), "Wb": (("mWb", 1000.0),)}
@@ -170,8 +207,10 @@ from pythonfmu.enums import Fmi2Status
 import @MODEL_MODULE@ as _model
 
 _VARIABLES = @VARIABLES@
+_FX_VARIABLES = @FX_VARIABLES@
 _PARAMS = ("R_ohm", "G_eddy_S", "drive_mode", "Psi0_Wb", "h_sub_max_s")
 _TUNABLE = ("R_ohm", "G_eddy_S")
+_FX_TUNABLE = ("hyst_gain", "friction_N")
 _STATE_LAYOUT = 1
 _TABLES = {}
 
@@ -206,6 +245,12 @@ class @CLASS@(Fmi2Slave):
         self.drive_mode = p["drive_mode"]
         self.Psi0_Wb = p["Psi0_Wb"]
         self.h_sub_max_s = p["h_sub_max_s"]
+        self._fx = bool(model.state_names()[len(_model.STATE_NAMES):])
+        variables = _VARIABLES + (_FX_VARIABLES if self._fx else ())
+        self._params = _PARAMS + tuple(v[0] for v in variables[len(_VARIABLES):] if v[2] == "parameter")
+        self._tunable = _TUNABLE + (_FX_TUNABLE if self._fx else ())
+        for name in self._params[len(_PARAMS):]:
+            setattr(self, name, p[name])
         self._t0 = 0.0
         self._dirty = True  # parameters to (re)apply before the next step
         self._ready = False  # initialized successfully
@@ -214,9 +259,10 @@ class @CLASS@(Fmi2Slave):
             "i_out_A": lambda: model.i_A, "U_out_V": lambda: model.U_V, "F_N": lambda: model.F_N,
             "psi_Wb": lambda: model.psi_Wb, "dpsi_dt_V": lambda: model.dpsi_dt_V,
             "i_eddy_A": lambda: model.i_eddy_A, "out_of_map": lambda: model.out_of_map,
+            "i_hyst_A": lambda: model.i_hyst_A, "T_rise_K": lambda: model.T_rise_K,
         }
         kinds = {"Real": Real, "Integer": Integer, "Enumeration": Integer, "Boolean": Boolean}
-        for name, typ, causality, variability, description in _VARIABLES:
+        for name, typ, causality, variability, description in variables:
             kw = dict(causality=getattr(Fmi2Causality, causality),
                       variability=getattr(Fmi2Variability, variability), description=description)
             if causality == "output":
@@ -231,7 +277,7 @@ class @CLASS@(Fmi2Slave):
 
     def _apply_params(self, all_params):
         self._dirty = True
-        names = _PARAMS if all_params else _TUNABLE
+        names = self._params if all_params else self._tunable
         self._model.set_params(**{n: getattr(self, n) for n in names})
         self._voltage = self._model.params["drive_mode"] == _model.DRIVE_VOLTAGE
         self._dirty = False
@@ -284,11 +330,11 @@ class @CLASS@(Fmi2Slave):
     def _get_fmu_state(self):
         return {
             "layout": _STATE_LAYOUT,
-            "state_names": list(_model.STATE_NAMES),
+            "state_names": list(self._model.state_names()),
             "model_state": self._model.get_state(),
             "model_params": dict(self._model.params),
             "inputs": [self.U_V, self.i_A, self.x_m],
-            "params": [self.R_ohm, self.G_eddy_S, int(self.drive_mode), self.Psi0_Wb, self.h_sub_max_s],
+            "params": [getattr(self, n) for n in self._params],
             "t0": self._t0,
             "dirty": self._dirty,
             "ready": self._ready,
@@ -296,13 +342,16 @@ class @CLASS@(Fmi2Slave):
 
     def _set_fmu_state(self, state):
         try:
-            if state.get("layout") != _STATE_LAYOUT or list(state["state_names"]) != list(_model.STATE_NAMES):
+            if (state.get("layout") != _STATE_LAYOUT
+                    or list(state["state_names"]) != list(self._model.state_names())):
                 raise _model.ModelInputError("FMU state from an incompatible model version")
             self._model.set_params(**state["model_params"])
             self._model.set_state(state["model_state"])
             self.U_V, self.i_A, self.x_m = (float(v) for v in state["inputs"])
-            (self.R_ohm, self.G_eddy_S, self.drive_mode, self.Psi0_Wb,
-             self.h_sub_max_s) = state["params"]
+            if len(state["params"]) != len(self._params):
+                raise _model.ModelInputError("FMU state with a different parameter set")
+            for name, value in zip(self._params, state["params"]):
+                setattr(self, name, value)
             self._t0 = float(state["t0"])
             self._dirty = bool(state["dirty"])
             self._ready = bool(state["ready"])
@@ -320,9 +369,12 @@ def _source_hash() -> str:
 
 
 def _slave_source(model_module: str) -> str:
-    variables = tuple((v.name, v.type, v.causality, v.variability, v.description) for v in VARIABLES)
+    def rows(spec):
+        return tuple((v.name, v.type, v.causality, v.variability, v.description) for v in spec)
+
     return (_SLAVE_TEMPLATE.replace("@MODEL_MODULE@", model_module).replace("@CLASS@", MODEL_IDENTIFIER)
-            .replace("@VARIABLES@", pprint.pformat(variables, width=100)))
+            .replace("@VARIABLES@", pprint.pformat(rows(VARIABLES), width=100))
+            .replace("@FX_VARIABLES@", pprint.pformat(rows(EFFECT_VARIABLES), width=100)))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -555,17 +607,19 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
     maps_el = etree.SubElement(tool, "Maps", name=maps_name, npz_sha256=sha_npz, json_sha256=sha_json,
                                psi_max_Wb=_fmt(tables.psi_max_Wb), x_min_m=_fmt(tables.x_min_m),
                                x_max_m=_fmt(tables.x_max_m), n_psi=str(tables.n_psi), n_x=str(tables.n_x))
-    sidecar = {k: meta.get(k) for k in ("name", "force_method", "coil", "eddy", "provenance") if k in meta}
+    sidecar = {k: meta.get(k) for k in ("name", "force_method", "coil", "eddy", "effects", "provenance")
+               if k in meta}
     maps_el.text = json.dumps(sidecar, sort_keys=True)
 
     # -- variables --------------------------------------------------------------------------
     variables = children.get("ModelVariables")
     scalars = list(variables) if variables is not None else []
     by_name = {sv.get("name"): sv for sv in scalars}
-    if [sv.get("name") for sv in scalars] != [v.name for v in VARIABLES]:
+    interface = interface_for(tables)
+    if [sv.get("name") for sv in scalars] != [v.name for v in interface]:
         raise FmuBuildError(f"{fmu_path}: model variables {[sv.get('name') for sv in scalars]} do not "
-                            f"match the interface {[v.name for v in VARIABLES]}")
-    for k, spec in enumerate(VARIABLES):
+                            f"match the interface {[v.name for v in interface]}")
+    for k, spec in enumerate(interface):
         sv = by_name[spec.name]
         sv.set("valueReference", str(k))
         sv.set("description", spec.description)
@@ -600,12 +654,12 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
             el.set("start", start)
 
     # -- model structure --------------------------------------------------------------------
-    index = {v.name: k + 1 for k, v in enumerate(VARIABLES)}
-    knowns = " ".join(str(index[v.name]) for v in VARIABLES if v.causality in ("input", "parameter"))
+    index = {v.name: k + 1 for k, v in enumerate(interface)}
+    knowns = " ".join(str(index[v.name]) for v in interface if v.causality in ("input", "parameter"))
     structure = etree.Element("ModelStructure")
     outputs = etree.SubElement(structure, "Outputs")
     initial = etree.SubElement(structure, "InitialUnknowns")
-    for v in VARIABLES:
+    for v in interface:
         if v.causality == "output":
             etree.SubElement(outputs, "Unknown", index=str(index[v.name]), dependencies="")
             etree.SubElement(initial, "Unknown", index=str(index[v.name]), dependencies=knowns)
@@ -638,7 +692,8 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
 def _documentation_html(model_name: str, description: str, tables: _model.MapTables) -> str:
     rows = "\n".join(
         f"<tr><td><code>{html.escape(v.name)}</code></td><td>{v.causality}</td><td>{v.variability}</td>"
-        f"<td>{html.escape(v.unit or '')}</td><td>{html.escape(v.description)}</td></tr>" for v in VARIABLES)
+        f"<td>{html.escape(v.unit or '')}</td><td>{html.escape(v.description)}</td></tr>"
+        for v in interface_for(tables))
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{html.escape(model_name)}</title></head>
 <body>
@@ -699,7 +754,8 @@ DRIVE_BY_KIND = {"flux": "current", "force_stroke": "current", "ramp": "current"
 
 
 def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float | None = None,
-                       G_eddy_S: float | None = None, Psi0_Wb: float | None = None) -> SimulationResult:
+                       G_eddy_S: float | None = None, Psi0_Wb: float | None = None,
+                       params: dict | None = None) -> SimulationResult:
     """Drive an FMU with fmpy from a recording's measured inputs; return the simulated recording.
 
     Parameters
@@ -718,6 +774,9 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
         Eddy-current conductance [S]; default the FMU's (from the maps).
     Psi0_Wb : float, optional
         Initial flux linkage [Wb]; default the map's flux at the first measured current and gap.
+    params : dict, optional
+        Further parameters by name (e.g. effect switches ``heating_on``: False), set before
+        initialization.
 
     Returns
     -------
@@ -796,8 +855,14 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
                     instanceName="simulate")
     n = t.size
-    out = np.empty((n, 6))
-    out_vr = [vrs[k] for k in ("U_out_V", "i_out_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V")]
+    out_names = ["U_out_V", "i_out_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V"]
+    out_names += [name for name in ("i_hyst_A", "T_rise_K") if name in vrs]
+    out = np.empty((n, len(out_names)))
+    out_vr = [vrs[k] for k in out_names]
+    types = {v.name: v.type for v in md.modelVariables}
+    for name in params or {}:
+        if name not in vrs or name in ("U_V", "i_A", "x_m", "drive_mode"):
+            raise FmuInputError(f"{fmu_path}: no settable parameter {name!r} in this FMU")
     try:
         fmu.instantiate(callbacks=callbacks, loggingOn=True)
         try:
@@ -811,6 +876,11 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
             reals = {"Psi0_Wb": Psi0_Wb, "R_ohm": R_ohm, "G_eddy_S": G_eddy_S}
             for name, value in reals.items():
                 if value is not None:
+                    fmu.setReal([vrs[name]], [float(value)])
+            for name, value in (params or {}).items():
+                if types[name] == "Boolean":
+                    fmu.setBoolean([vrs[name]], [bool(value)])
+                else:
                     fmu.setReal([vrs[name]], [float(value)])
             in_vr = [vrs["U_V" if drive == "voltage" else "i_A"], vrs["x_m"]]
             fmu.setReal(in_vr, [float(u[0]), float(x[0])])
@@ -836,6 +906,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     header["simulated_by"] = f"{fmu_path.name} ({md.modelName})"
     header["drive_mode"] = drive
     extra = {"psi_Wb": out[:, 3], "i_eddy_A": out[:, 4]}
+    extra.update({name: out[:, k] for k, name in enumerate(out_names) if k >= 6})
     sim = Recording(kind=rec.kind, solenoid=rec.solenoid, header=header, time_s=t, current_A=current,
                     voltage_V=voltage, force_N=out[:, 2], position_m=rec.position_m, extra=extra)
     return SimulationResult(recording=sim, drive_mode=drive, messages=messages)

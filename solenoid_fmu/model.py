@@ -105,6 +105,7 @@ import numpy as np
 __all__ = [
     "DEFAULT_PARAMS",
     "DRIVE_CURRENT",
+    "EFFECT_NAMES",
     "DRIVE_VOLTAGE",
     "MAPS_SCHEMA",
     "MAPS_SCHEMA_VERSION",
@@ -161,7 +162,32 @@ DEFAULT_PARAMS = {
     "drive_mode": "voltage",  # "voltage" / "current" (or DRIVE_VOLTAGE / DRIVE_CURRENT)
     "Psi0_Wb": 0.0,  # initial flux linkage [Wb] (ignored in current mode with G = 0)
     "h_sub_max_s": 1e-4,  # largest internal sub-step [s]
+    # switchable effect sub-models (issue 7); None = "as maps.json's effects section says"
+    "hysteresis_on": None,  # magnetic hysteresis (play operator on Psi, extra current [A])
+    "hyst_gain": 1.0,  # factor on the hysteresis current [-]
+    "eddy_ladder_on": None,  # frequency-dependent eddy currents (R-L sections beside G_eddy)
+    "heating_on": None,  # coil heating: R(T) with a first-order thermal model
+    "C_th_J_per_K": None,  # heat capacity of the coil [J/K]
+    "R_th_K_per_W": None,  # thermal resistance to ambient [K/W]
+    "alpha_per_K": None,  # temperature coefficient of R [1/K]
+    "friction_on": None,  # friction in the force output (Dahl model in x)
+    "friction_N": None,  # sliding friction force [N]
+    "presliding_m": None,  # presliding displacement of the Dahl model [m]
 }
+
+#: Names of the effect sub-models (the ``effects`` section of maps.json; issue 7).
+EFFECT_NAMES = ("hysteresis", "eddy_ladder", "heating", "friction")
+#: Defaults of the effect scalars when the effects section leaves them out.
+_EFFECT_DEFAULTS = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": 0.00393, "friction_N": 0.0,
+                    "presliding_m": 20e-6}
+_SWITCHES = {"hysteresis_on": "hysteresis", "eddy_ladder_on": "eddy_ladder", "heating_on": "heating",
+             "friction_on": "friction"}
+_EFFECT_SCALARS = {"C_th_J_per_K": ("heating", "C_th_J_per_K"), "R_th_K_per_W": ("heating", "R_th_K_per_W"),
+                   "alpha_per_K": ("heating", "alpha_per_K"), "friction_N": ("friction", "force_N"),
+                   "presliding_m": ("friction", "presliding_m")}
+#: Names of the effect states appended to the state vector when the maps carry effects
+#: (followed by one ``ladder_k`` per eddy section and one ``play_k`` per hysteresis play).
+EFFECT_STATE_NAMES = ("T_rise_K", "F_friction_N", "x_prev_m", "i_hyst_A")
 
 #: Severity of the excursion events (FMI log status names).
 _EVENT_SEVERITY = {
@@ -611,6 +637,13 @@ class SolenoidModel:
         self._end_cache = (math.nan, -1, math.nan, 0.0, 0.0)
         self._state = [0.0] * len(STATE_NAMES)
         self._state[0] = float(STATE_LAYOUT)
+        self._fx_data = _effects_data(tables)
+        self._fx_on = False
+        n_lad = len((self._fx_data.get("eddy_ladder") or {}).get("G_S", ()))
+        n_play = len((self._fx_data.get("hysteresis") or {}).get("thresholds", ()))
+        self._fx_names = (EFFECT_STATE_NAMES + tuple(f"ladder_{k}" for k in range(n_lad))
+                          + tuple(f"play_{k}" for k in range(n_play))) if self._fx_data else ()
+        self._fx = [0.0] * len(self._fx_names)
         self.set_params(**{k: v for k, v in DEFAULT_PARAMS.items()})
         if params:
             self.set_params(**params)
@@ -659,7 +692,27 @@ class SolenoidModel:
                 if v <= 0.0:
                     raise ModelInputError(f"h_sub_max_s must be > 0 s, got {v!r}")
                 new[key] = v
+            elif key in _SWITCHES:
+                name = _SWITCHES[key]
+                on = (name in self._fx_data) if value is None else bool(value)
+                if on and name not in self._fx_data:
+                    raise ModelInputError(f"{key}: the maps carry no {name!r} effect (maps.json 'effects')")
+                new[key] = on
+            elif key == "hyst_gain":
+                v = _finite(key, value)
+                if v < 0.0:
+                    raise ModelInputError(f"hyst_gain must be >= 0, got {v!r}")
+                new[key] = v
+            elif key in _EFFECT_SCALARS:
+                if value is None:
+                    sect, field = _EFFECT_SCALARS[key]
+                    value = (self._fx_data.get(sect) or {}).get(field, _EFFECT_DEFAULTS[key])
+                v = _finite(key, value)
+                if v < 0.0 or (v == 0.0 and key in ("C_th_J_per_K", "R_th_K_per_W", "presliding_m")):
+                    raise ModelInputError(f"{key} must be > 0 (>= 0 for alpha and friction), got {v!r}")
+                new[key] = v
         self.params = new
+        self._fx_on = any(new.get(k) for k in _SWITCHES)
         if "R_ohm" in new and "G_eddy_S" in new and "drive_mode" in new and "h_sub_max_s" in new:
             R, G = new["R_ohm"], new["G_eddy_S"]
             voltage = new["drive_mode"] == DRIVE_VOLTAGE
@@ -673,14 +726,13 @@ class SolenoidModel:
         return "voltage" if self.params["drive_mode"] == DRIVE_VOLTAGE else "current"
 
     # -- state ---------------------------------------------------------------------------------
-    @staticmethod
-    def state_names() -> tuple:
-        """Names of the state vector entries (:data:`STATE_NAMES`)."""
-        return STATE_NAMES
+    def state_names(self) -> tuple:
+        """Names of the state vector entries: :data:`STATE_NAMES`, then the effect states (if any)."""
+        return STATE_NAMES + self._fx_names
 
     def get_state(self) -> list:
-        """The full internal state as a new list of floats (order: :data:`STATE_NAMES`)."""
-        return list(self._state)
+        """The full internal state as a new list of floats (order: :meth:`state_names`)."""
+        return list(self._state) + list(self._fx)
 
     def set_state(self, state) -> None:
         """Restore a state from :meth:`get_state` exactly; pending events are dropped.
@@ -691,13 +743,18 @@ class SolenoidModel:
             Wrong length or layout version, or a non-finite time or flux.
         """
         s = [float(v) for v in state]
-        if len(s) != len(STATE_NAMES) or s[0] != float(STATE_LAYOUT):
+        n = len(STATE_NAMES) + len(self._fx_names)
+        if len(s) != n or s[0] != float(STATE_LAYOUT):
             raise ModelInputError(f"state vector has {len(s)} entries and layout {s[0] if s else None!r}; "
-                                  f"this model expects {len(STATE_NAMES)} entries, layout {STATE_LAYOUT}")
-        for name in ("time_s", "psi_Wb"):
-            if not math.isfinite(s[_IDX[name]]):
-                raise ModelInputError(f"state {name} must be finite, got {s[_IDX[name]]!r}")
-        self._state = s
+                                  f"this model expects {n} entries, layout {STATE_LAYOUT}")
+        for k, v in enumerate(s):
+            if k in (_IDX["time_s"], _IDX["psi_Wb"]) or k >= len(STATE_NAMES):
+                if not math.isfinite(v):
+                    raise ModelInputError(f"state {self.state_names()[k]} must be finite, got {v!r}")
+        self._state = s[: len(STATE_NAMES)]
+        self._fx = s[len(STATE_NAMES):]
+        self._x_cache = (math.nan, (0, 0.0, False))
+        self._end_cache = (math.nan, -1, math.nan, 0.0, 0.0)
         self.events = []
 
     @property
@@ -748,8 +805,12 @@ class SolenoidModel:
     def outputs(self) -> dict:
         """All outputs at the last communication point, by name (units in the names)."""
         s = self._state
-        return {"i_A": s[7], "U_V": s[8], "F_N": s[9], "psi_Wb": s[2], "dpsi_dt_V": s[10],
-                "i_eddy_A": s[11], "out_of_map": self.out_of_map}
+        out = {"i_A": s[7], "U_V": s[8], "F_N": s[9], "psi_Wb": s[2], "dpsi_dt_V": s[10],
+               "i_eddy_A": s[11], "out_of_map": self.out_of_map}
+        if self._fx_names:
+            out["i_hyst_A"] = self.i_hyst_A
+            out["T_rise_K"] = self.T_rise_K
+        return out
 
     # -- simulation ----------------------------------------------------------------------------
     def _set_flag(self, s: list, name: str, on: bool, i_f_A: float = 0.0, x_m: float = 0.0) -> None:
@@ -828,6 +889,13 @@ class SolenoidModel:
         s[9], s[10], s[11] = force, dpsi, G * dpsi
         self._finish(s, psi, pc, i_f, x_m, xc)
         self._state = s
+        if self._fx_names:
+            fx = [0.0] * len(self._fx_names)
+            fx[2] = x_m
+            n_lad = len((self._fx_data.get("eddy_ladder") or {}).get("G_S", ()))
+            for k in range(4 + n_lad, len(fx)):
+                fx[k] = psi  # plays neutral at the start flux (demagnetized state)
+            self._fx = fx
 
     def step(self, h_s: float, u: float, x_m: float, t_s: float | None = None) -> None:
         """Advance one communication step of ``h_s`` [s] with the inputs held.
@@ -867,6 +935,9 @@ class SolenoidModel:
             t_s = float(t_s)
             if not t_s - t_s == 0.0:
                 raise ModelInputError(f"step start time {t_s!r} is not finite")
+        if self._fx_on:
+            self._step_fx(h, u, x_m, t_s)
+            return
         tab = self.tables
         hot = tab._hot
         xcache = self._x_cache
@@ -910,6 +981,203 @@ class SolenoidModel:
         if xc != (s[5] != 0.0) or pc != (s[4] != 0.0) or ext != (s[6] != 0.0):
             self._finish(s, psi, pc, i_f, x_m, xc)
         self._state = s
+
+
+    # -- effect sub-models (issue 7) ---------------------------------------------------------------
+    @property
+    def i_hyst_A(self) -> float:
+        """Hysteresis current [A] of the play operator (0 without the effect)."""
+        return self._fx[3] if self._fx else 0.0
+
+    @property
+    def T_rise_K(self) -> float:
+        """Coil temperature rise since initialization [K] (0 without heating)."""
+        return self._fx[0] if self._fx else 0.0
+
+    def _step_fx(self, h: float, u: float, x_m: float, t_s) -> None:
+        """One communication step with effect sub-models switched on (inputs already checked).
+
+        Equations (SI), extending paper eqs. (1)-(3)::
+
+            U = R(T) i + e,   e = dPsi/dt,   R(T) = R (1 + alpha T)
+            i = i_f(Psi, x) + i_h + G e + sum_k i_k
+            tau_k di_k/dt = G_k e - i_k                   (eddy ladder sections)
+            i_h = gain * g(Psi) * sum_j w_j (Psi - play_j(Psi))   (hysteresis, play operator)
+            C_th dT/dt = R(T) i^2 - T / R_th              (heating, T = rise above start)
+            F = F(Psi, x) + F_fr,  F_fr -> +-F_c over |dx| ~ presliding (Dahl, sign of dx)
+
+        The flux and the ladder currents are integrated together by ROS2 in mass-matrix form
+        ``M y' = f(y)`` (the arrow-shaped system is solved in O(sections)); hysteresis and
+        temperature are updated after every sub-step from the new flux (explicit, they change
+        slowly with respect to a sub-step), friction once per communication step from the change
+        of ``x``. Current drive with ``G = 0`` and no ladder solves ``i_f(Psi) = i - i_h``.
+        """
+        p = self.params
+        fx = list(self._fx)
+        s = list(self._state)
+        tab = self.tables
+        hot = tab._hot
+        voltage = p["drive_mode"] == DRIVE_VOLTAGE
+        R0, G0 = p["R_ohm"], p["G_eddy_S"]
+        j, w, xc = tab.x_cell(x_m)
+        lad = self._fx_data.get("eddy_ladder") if p["eddy_ladder_on"] else None
+        n_lad_all = len((self._fx_data.get("eddy_ladder") or {}).get("G_S", ()))
+        Gk = lad["G_S"] if lad else ()
+        tk = lad["tau_s"] if lad else ()
+        ik = fx[4: 4 + len(Gk)]
+        hy = self._fx_data.get("hysteresis") if p["hysteresis_on"] else None
+        plays = fx[4 + n_lad_all:]
+        gain = p["hyst_gain"]
+        heat = p["heating_on"]
+        alpha, Cth, Rth = p["alpha_per_K"], p["C_th_J_per_K"], p["R_th_K_per_W"]
+        T, ih = fx[0], fx[3]
+        n = max(1, math.ceil(h / p["h_sub_max_s"] - 1e-9))
+        hs = h / n
+        gh = ROS2_GAMMA * hs
+        psi0 = s[2]
+        psi = psi0
+        pc = False
+        nl = len(Gk)
+        for _ in range(n):
+            R = R0 * (1.0 + alpha * T) if heat else R0
+            m = 1.0 + R * G0 if voltage else G0
+            c = R if voltage else 1.0
+            psi_a = psi
+            if m == 0.0 and nl == 0:
+                psi, pc = _solve_psi(tab, u - ih, j, w, psi)
+            else:
+                v, d, _ = _eval(hot, psi, j, w)
+                a = [tk[k] + gh for k in range(nl)]
+                den = m + gh * c * d + sum(gh * c * Gk[k] / a[k] for k in range(nl))
+                f0 = u - c * (v + ih + sum(ik))
+                r = [-ik[k] for k in range(nl)]
+                z0 = (f0 - gh * c * sum(r[k] / a[k] for k in range(nl))) / den
+                z = [(r[k] + Gk[k] * z0) / a[k] for k in range(nl)]
+                p2 = psi + hs * z0
+                i2 = [ik[k] + hs * z[k] for k in range(nl)]
+                v2 = _eval(hot, p2, j, w)[0]
+                f0 = u - c * (v2 + ih + sum(i2)) - 2.0 * m * z0
+                r = [-i2[k] - 2.0 * (tk[k] * z[k] - Gk[k] * z0) for k in range(nl)]
+                q0 = (f0 - gh * c * sum(r[k] / a[k] for k in range(nl))) / den
+                q = [(r[k] + Gk[k] * q0) / a[k] for k in range(nl)]
+                psi = psi + 1.5 * hs * z0 + 0.5 * hs * q0
+                ik = [ik[k] + 1.5 * hs * z[k] + 0.5 * hs * q[k] for k in range(nl)]
+                pm = tab.psi_max_Wb
+                if psi > pm:
+                    psi, pc = pm, True
+                elif psi < -pm:
+                    psi, pc = -pm, True
+            if heat:
+                i_sub = (u - (psi - psi_a) / hs) / R if voltage else u
+                T += hs * (R * i_sub * i_sub - T / Rth) / Cth
+            if hy is not None:
+                ih = gain * _play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], psi)
+        i_f, d_end, force = _eval(hot, psi, j, w)
+        self._end_cache = (math.nan, -1, math.nan, 0.0, 0.0)
+        R = R0 * (1.0 + alpha * T) if heat else R0
+        sik = sum(ik)
+        if voltage:
+            dpsi = (u - R * (i_f + ih + sik)) / (1.0 + R * G0)
+            s[7] = i_f + ih + G0 * dpsi + sik
+            s[8] = u
+        else:
+            dpsi = (psi - psi0) / h
+            s[7] = u
+            s[8] = R * u + dpsi
+        ffr = fx[1]
+        if p["friction_on"]:
+            dx = x_m - fx[2]
+            if dx != 0.0:
+                fc = p["friction_N"]
+                target = fc if dx > 0.0 else -fc
+                ffr = target + (ffr - target) * math.exp(-abs(dx) / p["presliding_m"])
+        s[1] = (s[1] if t_s is None else t_s) + h
+        s[2] = psi
+        s[9] = force + ffr
+        s[10] = dpsi
+        s[11] = G0 * dpsi + sik
+        fx[0], fx[1], fx[2], fx[3] = T, ffr, x_m, ih
+        fx[4: 4 + nl] = ik
+        fx[4 + n_lad_all:] = plays
+        self._finish(s, psi, pc, i_f, x_m, xc)
+        self._state = s
+        self._fx = fx
+
+
+def _effects_data(tables: MapTables) -> dict:
+    """The ``effects`` section of maps.json, checked and prepared for the step (SI units).
+
+    Keys (each optional): ``hysteresis`` {thresholds [Wb], weights [A/Wb], shape {b_nodes [Wb],
+    g_nodes [-]} or null}, ``eddy_ladder`` {G_S [S], tau_s [s]}, ``heating`` {C_th_J_per_K,
+    R_th_K_per_W, alpha_per_K}, ``friction`` {force_N, presliding_m}.
+    """
+    raw = tables.meta.get("effects") or {}
+    where = f"{tables.where}: maps.json effects"
+    if not isinstance(raw, dict):
+        raise ModelMapsError(f"{where}: must be an object")
+    out = {}
+    for name, data in raw.items():
+        if name not in EFFECT_NAMES:
+            raise ModelMapsError(f"{where}: unknown effect {name!r}; known: {', '.join(EFFECT_NAMES)}")
+        if data is None:
+            continue
+        if not isinstance(data, dict):
+            raise ModelMapsError(f"{where}.{name}: must be an object")
+        try:
+            if name == "hysteresis":
+                r = [float(v) for v in data["thresholds"]]
+                wts = [float(v) for v in data["weights"]]
+                shape = data.get("shape") or {}
+                gb = [float(v) for v in shape.get("b_nodes", ())]
+                gg = [float(v) for v in shape.get("g_nodes", ())]
+                ok = (len(r) == len(wts) >= 1 and all(v > 0 for v in r) and all(v >= 0 for v in wts)
+                      and len(gb) == len(gg) and all(gb[k + 1] > gb[k] for k in range(len(gb) - 1)))
+                if not ok:
+                    raise ValueError("thresholds > 0 and weights >= 0 of equal length, increasing shape nodes")
+                out[name] = {"r": r, "w": wts, "gb": gb, "gg": gg, "thresholds": r}
+            elif name == "eddy_ladder":
+                G = [float(v) for v in data["G_S"]]
+                tau = [float(v) for v in data["tau_s"]]
+                if not (len(G) == len(tau) >= 1 and all(v >= 0 for v in G) and all(v > 0 for v in tau)):
+                    raise ValueError("G_S >= 0 and tau_s > 0 of equal length")
+                out[name] = {"G_S": G, "tau_s": tau}
+            else:
+                vals = {k: float(v) for k, v in data.items()}
+                if any(not math.isfinite(v) or v < 0 for v in vals.values()):
+                    raise ValueError("values must be finite and >= 0")
+                out[name] = vals
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelMapsError(f"{where}.{name}: {exc}") from None
+    return out
+
+
+def _play_step(plays: list, r: list, wts: list, gb: list, gg: list, b: float) -> float:
+    """Advance the play operators to input ``b`` (in place) and return ``g(b) sum w (b - p)``.
+
+    The inverse Prandtl-Ishlinskii operator of ``solenoid_fmu.hysteresis.PlayHysteresis``
+    (same arithmetic, scalar form, no numpy).
+    """
+    acc = 0.0
+    for k in range(len(r)):
+        lo = b - r[k]
+        hi = b + r[k]
+        q = plays[k]
+        if q < lo:
+            q = lo
+        elif q > hi:
+            q = hi
+        plays[k] = q
+        acc += wts[k] * (b - q)
+    if not gb:
+        return acc
+    if b <= gb[0]:
+        g = gg[0]
+    elif b >= gb[-1]:
+        g = gg[-1]
+    else:
+        jj = bisect.bisect_right(gb, b) - 1
+        g = gg[jj] + (b - gb[jj]) / (gb[jj + 1] - gb[jj]) * (gg[jj + 1] - gg[jj])
+    return g * acc
 
 
 def _eval(hot: tuple, psi: float, j: int, w: float) -> tuple[float, float, float]:
