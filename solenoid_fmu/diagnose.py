@@ -70,6 +70,12 @@ class ResidualCase:
         ``psi_Wb``).
     measured : dict of str -> ndarray
         The measured signals with the same keys (for the sensor signature and normalization).
+    kind : str
+        The recording kind (``flux``, ``force_stroke``, ...); "" when not from a recording.
+    drive : str
+        How the FMU was driven (``"current"`` or ``"voltage"``); "" when not from a recording.
+    path : str
+        The recording's full path; "" when not from a file.
     """
 
     name: str
@@ -80,6 +86,9 @@ class ResidualCase:
     resistance_ohm: float
     residuals: dict
     measured: dict
+    kind: str = ""
+    drive: str = ""
+    path: str = ""
 
 
 @dataclass
@@ -341,52 +350,85 @@ def diagnose(cases: list[ResidualCase], effects=EFFECTS, threshold: float = DEFA
 
 
 # -- from recordings ------------------------------------------------------------------------------
-def cases_from_recordings(fmu_path, recordings, progress=None) -> list[ResidualCase]:
+def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) -> list[ResidualCase]:
     """Run the FMU on each recording's measured inputs and collect the residuals.
 
-    Current-driven runs (flux, force_stroke, ramp, eddy) give the flux residual (Psi from the
-    measured voltage by paper eq. 4 minus the FMU's Psi) where the recording has a voltage, and
-    the force residual where it has a force. Voltage-driven runs (voltage_step) give the current
-    and force residuals.
+    Current-driven runs (flux, force_stroke, ramp, eddy) give the flux residual where the
+    recording has a voltage, and the force residual where it has a force. Voltage-driven runs
+    (voltage_step) give the current and force residuals. See :func:`residual_case`.
 
     Parameters
     ----------
-    fmu_path : path-like
-        A solenoid-fmu FMU.
+    fmu_path : path-like or None
+        A solenoid-fmu FMU (driven with fmpy), or None when ``simulate`` is given.
     recordings : list of path-like or Recording
     progress : callable, optional
         Called with each file name before it is simulated.
+    simulate : callable, optional
+        ``simulate(recording, R_ohm) -> SimulationResult`` instead of the FMU (e.g.
+        :func:`solenoid_fmu.fmu.simulate_model` in process).
     """
     from .fmu import simulate_recording
-    from .recordings import Recording, flux_linkage, read_recording
+    from .recordings import Recording, read_recording
+
+    if simulate is None:
+        def simulate(rec, R_ohm):
+            return simulate_recording(fmu_path, rec, R_ohm=R_ohm)
 
     cases = []
     for item in recordings:
         rec = item if isinstance(item, Recording) else read_recording(item)
-        name = rec.path.name if rec.path is not None else rec.kind
         if progress:
-            progress(name)
-        sim = simulate_recording(fmu_path, rec)
-        s = sim.recording
-        psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
-        residuals, measured = {}, {}
-        if rec.force_N is not None:
-            residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
-            measured["force_N"] = np.asarray(rec.force_N)
-        if sim.drive_mode == "current":
-            if rec.voltage_V is not None:
-                psi_meas = flux_linkage(rec).psi_Wb
-                residuals["psi_Wb"] = psi_meas - psi_sim
-                measured["psi_Wb"] = psi_meas
-        else:
-            residuals["current_A"] = np.asarray(rec.current_A) - np.asarray(s.current_A)
-            measured["current_A"] = np.asarray(rec.current_A)
-        if not residuals:
-            continue
-        R = rec.coil_resistance_ohm or 1.0
-        cases.append(ResidualCase(name, np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
-                                  np.asarray(rec.positions_m()), R, residuals, measured))
+            progress(rec.path.name if rec.path is not None else rec.kind)
+        case = residual_case(rec, simulate)
+        if case is not None:
+            cases.append(case)
     return cases
+
+
+def residual_case(rec, simulate) -> ResidualCase | None:
+    """Residuals of one recording against a simulator (None if it has no signal to compare).
+
+    The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
+    measured voltage with the coil resistance ``R`` of the recording (header or estimate); the
+    simulated one is the same integral of the simulated voltage, ``Psi_sim(0) + sum h (U_sim - R i)``
+    over the steps. For a model with constant resistance this is exactly the simulated flux; a
+    model with coil heating then shows the same ``R(T)`` drift the measurement carries.
+    """
+    from .recordings import flux_linkage
+
+    residuals, measured = {}, {}
+    fr = None
+    R = rec.coil_resistance_ohm
+    if rec.voltage_V is not None and rec.kind != "voltage_step":
+        fr = flux_linkage(rec)
+        R = fr.resistance_ohm
+    sim = simulate(rec, R)
+    s = sim.recording
+    psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
+    if rec.force_N is not None:
+        residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
+        measured["force_N"] = np.asarray(rec.force_N)
+    if sim.drive_mode == "current":
+        if rec.voltage_V is not None:
+            if fr is None:
+                fr = flux_linkage(rec)
+                R = fr.resistance_ohm
+            t = np.asarray(rec.time_s, dtype=float)
+            i = np.asarray(rec.current_A, dtype=float)
+            inc = np.diff(t) * (np.asarray(s.voltage_V)[1:] - R * i[1:])
+            psi_app = psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)])
+            residuals["psi_Wb"] = fr.psi_Wb - psi_app
+            measured["psi_Wb"] = fr.psi_Wb
+    else:
+        residuals["current_A"] = np.asarray(rec.current_A) - np.asarray(s.current_A)
+        measured["current_A"] = np.asarray(rec.current_A)
+    if not residuals:
+        return None
+    name = rec.path.name if rec.path is not None else rec.kind
+    return ResidualCase(name, np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
+                        np.asarray(rec.positions_m()), R or 1.0, residuals, measured, kind=rec.kind,
+                        drive=sim.drive_mode, path="" if rec.path is None else str(rec.path))
 
 
 def add_cli(sub) -> None:

@@ -80,6 +80,7 @@ __all__ = [
     "build_fmu",
     "finalize_model_description",
     "load_maps_tables",
+    "simulate_model",
     "simulate_recording",
 ]
 
@@ -819,15 +820,9 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     if drive == "voltage" and rec.voltage_V is None:
         raise FmuInputError(f"{rec._where()}: no voltage_V column to drive the model with; "
                             "use --drive current")
-    t = np.asarray(rec.time_s, dtype=float)
-    x = np.asarray(rec.positions_m(), dtype=float)
-    u = np.asarray(rec.voltage_V if drive == "voltage" else rec.current_A, dtype=float)
+    t, x, u, u_step = _drive_inputs(rec, drive)
     if R_ohm is None:
         R_ohm = rec.coil_resistance_ohm
-    # Input held over the step t_k -> t_k+1 (whose output is sample k+1): the current at the end of
-    # the step in current drive (the flux follows it algebraically, or nearly); the mean of the two
-    # samples in voltage drive (the flux integrates it: the trapezoid of paper eq. 4).
-    u_step = 0.5 * (u[:-1] + u[1:]) if drive == "voltage" else u[1:]
 
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
@@ -898,18 +893,82 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
             fmu.freeInstance()
     finally:
         shutil.rmtree(unzip, ignore_errors=True)
+    return _simulated(rec, drive, u, out, out_names, f"{fmu_path.name} ({md.modelName})", messages)
+
+
+def _drive_inputs(rec, drive: str):
+    """Sample times, gaps, drive input and the input held over each step (see simulate_recording)."""
+    t = np.asarray(rec.time_s, dtype=float)
+    x = np.asarray(rec.positions_m(), dtype=float)
+    u = np.asarray(rec.voltage_V if drive == "voltage" else rec.current_A, dtype=float)
+    # Input held over the step t_k -> t_k+1 (whose output is sample k+1): the current at the end of
+    # the step in current drive (the flux follows it algebraically, or nearly); the mean of the two
+    # samples in voltage drive (the flux integrates it: the trapezoid of paper eq. 4).
+    u_step = 0.5 * (u[:-1] + u[1:]) if drive == "voltage" else u[1:]
+    return t, x, u, u_step
+
+
+def _simulated(rec, drive, u, out, out_names, by: str, messages) -> SimulationResult:
+    from .recordings import Recording
+
     if drive == "voltage":
         voltage, current = u, out[:, 1]
     else:
         voltage, current = out[:, 0], u
     header = dict(rec.header)
-    header["simulated_by"] = f"{fmu_path.name} ({md.modelName})"
+    header["simulated_by"] = by
     header["drive_mode"] = drive
     extra = {"psi_Wb": out[:, 3], "i_eddy_A": out[:, 4]}
     extra.update({name: out[:, k] for k, name in enumerate(out_names) if k >= 6})
-    sim = Recording(kind=rec.kind, solenoid=rec.solenoid, header=header, time_s=t, current_A=current,
+    sim = Recording(kind=rec.kind, solenoid=rec.solenoid, header=header, time_s=rec.time_s, current_A=current,
                     voltage_V=voltage, force_N=out[:, 2], position_m=rec.position_m, extra=extra)
     return SimulationResult(recording=sim, drive_mode=drive, messages=messages)
+
+
+def simulate_model(tables: _model.MapTables, recording, *, drive: str = "auto", R_ohm: float | None = None,
+                   params: dict | None = None) -> SimulationResult:
+    """Drive ``model.py`` in this process exactly as :func:`simulate_recording` drives an FMU.
+
+    The FMU ships the same ``model.py`` (its agreement with the FMU to 1e-9 is tested), so this is
+    the fast path for fitting effect parameters (``improve``); reports use the FMU itself.
+
+    Parameters
+    ----------
+    tables : MapTables
+        The maps, with any ``effects`` section in their maps.json meta.
+    recording : path-like or Recording
+    drive, R_ohm : see :func:`simulate_recording`
+    params : dict, optional
+        Further model parameters (:data:`solenoid_fmu.model.DEFAULT_PARAMS` keys).
+    """
+    from .recordings import Recording, read_recording
+
+    rec = recording if isinstance(recording, Recording) else read_recording(recording)
+    if drive == "auto":
+        drive = DRIVE_BY_KIND.get(rec.kind, "current")
+    t, x, u, u_step = _drive_inputs(rec, drive)
+    R_ohm = R_ohm if R_ohm is not None else rec.coil_resistance_ohm
+    p = {"drive_mode": drive, "Psi0_Wb": tables.psi_of_current(float(rec.current_A[0]), float(x[0]))}
+    if R_ohm is not None:
+        p["R_ohm"] = R_ohm
+    p.update(params or {})
+    try:
+        model = _model.SolenoidModel(tables, p)
+        model.initialize(float(u[0]), float(x[0]), float(t[0]))
+        names = ["U_V", "i_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V"]
+        fx = ["i_hyst_A", "T_rise_K"] if model.state_names()[len(_model.STATE_NAMES):] else []
+        out = np.empty((t.size, len(names) + len(fx)))
+        o = model.outputs()
+        out[0] = [o[k] for k in names + fx]
+        step, dt = model.step, np.diff(t)
+        for k in range(t.size - 1):
+            step(float(dt[k]), float(u_step[k]), float(x[k + 1]), float(t[k]))
+            o = model.outputs()
+            out[k + 1] = [o[k2] for k2 in names + fx]
+    except _model.ModelError as exc:
+        raise FmuInputError(f"model refused the recording {rec._where()}: {exc}") from None
+    return _simulated(rec, drive, u, out, ["U_out_V", "i_out_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V"] + fx,
+                      "solenoid_fmu.model (in process)", [])
 
 
 # ----------------------------------------------------------------------------------------------
