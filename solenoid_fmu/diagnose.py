@@ -16,7 +16,7 @@ heating    current times the temperature rise of a first-order thermal model dri
            for thermal time constants 30 s to 20 min: grows with dissipated energy over time
 friction   sign of the armature's last motion (force only): flips with the direction of
            motion and holds while the armature stands
-sensor     a constant and the measured signal itself (offset and gain) of current, voltage, force
+sensor     a constant and the simulated signal (offset and gain) of current, voltage, force
 material   a cubic polynomial in the normalized (Psi, x): a single-valued function of Psi and x
            alone, as a wrong B(H) curve leaves it
 ========== ====================================================================================
@@ -197,7 +197,10 @@ def features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.n
         meas = case.measured.get(signal)
         if meas is None or signal == "psi_Wb":  # Psi is derived (eq. 4), its offsets are removed there
             return None
-        return np.column_stack([np.ones(n), meas / scales["range"].get(signal, 1.0)])
+        # gain on the *simulated* signal (measured minus residual): a gain on the measured one would
+        # contain the residual itself, and together with the material polynomial span any residual
+        sim = meas - case.residuals[signal]
+        return np.column_stack([np.ones(n), sim / scales["range"].get(signal, 1.0)])
     if effect == "material":
         x = (case.position_m - scales["x"]) / max(scales["x_span"], 1e-30)
         cols = [psi, psi**2, psi**3, psi * x, psi**2 * x, psi * x**2]

@@ -1,0 +1,522 @@
+"""Close the loop: add the effect the diagnosis names to the real-time model, fit it, keep it if it pays.
+
+The loop (issue 7), on a campaign of recordings and an FMU built from characteristic maps:
+
+1. simulate every recording with the current model and diagnose the residual
+   (:mod:`solenoid_fmu.diagnose`);
+2. take the best-ranked candidate above the threshold that the model can add (``hysteresis``,
+   ``eddy`` as an eddy-current ladder, ``heating``, ``friction``; ``material`` and ``sensor`` are
+   not model effects: a wrong B(H) is fixed by ``identify``, a sensor by calibration);
+3. fit its parameters on the *fit* part of the recordings (:func:`split_recordings`) by the
+   effect's own regression (below), simulate all recordings with it and keep it only if the
+   normalized error on the *validation* part falls by at least ``min_gain`` (default 10 %);
+4. repeat while an effect still pays, up to ``max_effects``.
+
+The effect sub-models live in ``model.py`` (their equations are in
+:meth:`solenoid_fmu.model.SolenoidModel._step_fx`); the improved FMU carries them as switchable
+sub-models with parameters, from the ``effects`` section of its maps.json. The fits:
+
+``hysteresis``
+    Play operator (:func:`solenoid_fmu.hysteresis.fit_play_to_series`) on the current the maps do
+    not explain, ``i - i_f(Psi, x) - i_eddy`` along the measured flux of the slow (``flux``)
+    recordings: rate-independent, so the slow triangles carry it cleanly.
+``eddy``
+    Ladder ``i_eddy = G e + sum_k G_k lowpass_tau_k(e)`` with ``e = dPsi/dt`` over a fixed grid of
+    time constants (0.1 ms .. 10 ms), non-negative least squares on the ``eddy`` recordings; sections
+    under 3 % of the total conductance are dropped.
+``heating``
+    With the resistance measured before a run, coil heating leaves the eq.-4 flux drifting by
+    ``int (R(T) - R) i dt``; with ``C_th dT/dt = R i^2`` (cooling is negligible within a
+    recording) the drift is ``(alpha R^2 / C_th) int i int i^2``: linear in ``1 / C_th``, fitted by
+    least squares on the flux residual (``R_th`` is not identifiable from short recordings and
+    keeps its default, ``alpha`` is copper's unless the maps say otherwise).
+``friction``
+    Dahl friction in the force, ``F_fr -> +-F_c`` over the presliding displacement, linear in
+    ``F_c`` for each presliding length of a grid (5 um .. 100 um); the best fit wins.
+
+The reported before/after errors come from the FMUs themselves (fmpy), per recording and signal.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import model as _model
+from .errors import SolenoidError
+
+#: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
+ADDABLE = {"hysteresis": "hysteresis", "eddy": "eddy_ladder", "heating": "heating", "friction": "friction"}
+DEFAULT_MAX_EFFECTS = 4
+DEFAULT_MIN_GAIN = 0.10
+#: Time constants of the eddy-ladder regression [s].
+LADDER_TAUS_S = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
+#: Presliding lengths tried for friction [m].
+PRESLIDING_M = (5e-6, 10e-6, 20e-6, 50e-6, 100e-6)
+
+
+class ImproveError(SolenoidError):
+    """The improvement loop cannot run (no recordings, an FMU without maps, ...)."""
+
+
+@dataclass
+class Step:
+    """One tried effect: its parameters and the validation error before and after (normalized)."""
+
+    effect: str
+    accepted: bool
+    params: dict = field(default_factory=dict)
+    heldout_before: float = math.nan
+    heldout_after: float = math.nan
+    note: str = ""
+
+    def as_dict(self) -> dict:
+        return {"effect": self.effect, "accepted": self.accepted, "params": self.params,
+                "heldout_error_before": self.heldout_before, "heldout_error_after": self.heldout_after,
+                "note": self.note}
+
+
+# -- tables with effects -------------------------------------------------------------------------
+def tables_from_fmu(fmu_path) -> tuple[_model.MapTables, dict]:
+    """The maps an FMU carries (resources/maps.npz + maps.json) and the raw maps.json dict."""
+    fmu_path = Path(fmu_path)
+    if not fmu_path.is_file():
+        raise ImproveError(f"{fmu_path}: FMU file not found")
+    try:
+        with zipfile.ZipFile(fmu_path) as zf, tempfile.TemporaryDirectory(prefix="solenoid_improve_") as tmp:
+            for name in ("maps.npz", "maps.json"):
+                Path(tmp, name).write_bytes(zf.read(f"resources/{name}"))
+            tab = _model.load_tables(tmp)
+            meta = json.loads(Path(tmp, "maps.json").read_text(encoding="utf-8"))
+    except (KeyError, zipfile.BadZipFile, OSError) as exc:
+        raise ImproveError(f"{fmu_path}: not a solenoid-fmu FMU with maps in resources/ ({exc})") from None
+    except _model.ModelMapsError as exc:
+        raise ImproveError(f"{fmu_path}: {exc}") from None
+    tab.where = str(fmu_path)
+    return tab, meta
+
+
+def with_effects(tables: _model.MapTables, effects: dict, G_eddy_S: float | None = None) -> _model.MapTables:
+    """A copy of ``tables`` whose maps.json meta carries ``effects`` (and ``G_eddy_S`` [S] if given)."""
+    meta = json.loads(json.dumps(tables.meta))
+    meta["effects"] = effects
+    if G_eddy_S is not None:
+        meta.setdefault("eddy", {})
+        meta["eddy"] = dict(meta["eddy"] or {}, G_eddy_S=float(G_eddy_S))
+    t = tables.tables()
+    psi = np.arange(tables.n_psi) * tables.dpsi_Wb
+    return _model.MapTables(psi, t["x_m"], t["i_f_A"], t["force_N"], extrapolated=tables.extrapolated, meta=meta,
+                            where=tables.where, i_fem_max_A=tables.i_fem_max_A)
+
+
+# -- recordings ----------------------------------------------------------------------------------
+def split_recordings(recordings) -> tuple[list, list]:
+    """Fit / validation split: per kind, in file-name order from the last, alternately fit and validate.
+
+    The largest excitation of a series (files are numbered by amplitude or rate) is fitted; a kind
+    with a single recording is only validated on.
+    """
+    by_kind: dict = {}
+    for rec in recordings:
+        by_kind.setdefault(rec.kind, []).append(rec)
+    fit, val = [], []
+    for recs in by_kind.values():
+        recs = sorted(recs, key=lambda r: str(r.path or ""))
+        if len(recs) == 1:
+            val.extend(recs)
+            continue
+        for k, rec in enumerate(reversed(recs)):
+            (fit if k % 2 == 0 else val).append(rec)
+    return fit, val
+
+
+def _name(rec) -> str:
+    return rec.path.name if rec.path is not None else rec.kind
+
+
+def _i_f(tables: _model.MapTables, psi: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.array([tables.i_f_A(float(p), float(xx)) for p, xx in zip(psi, x, strict=True)])
+
+
+def _lowpass(e: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """State of ``tau y' = e - y`` from 0 with ``e`` held over each sample interval (exact)."""
+    y = np.zeros_like(e)
+    a = np.exp(-np.diff(t) / tau)
+    for k in range(1, e.size):
+        y[k] = a[k - 1] * y[k - 1] + (1.0 - a[k - 1]) * e[k]
+    return y
+
+
+def _flux_data(rec):
+    from .recordings import flux_linkage
+
+    fr = flux_linkage(rec)
+    t = np.asarray(rec.time_s, dtype=float)
+    psi = np.asarray(fr.psi_Wb, dtype=float)
+    return t, psi, np.gradient(psi, t), np.asarray(rec.current_A, dtype=float), np.asarray(rec.positions_m())
+
+
+def _eddy_current(tables, effects, e, t) -> np.ndarray:
+    G0 = tables.G_eddy_S or 0.0
+    out = G0 * e
+    lad = effects.get("eddy_ladder")
+    if lad:
+        for G, tau in zip(lad["G_S"], lad["tau_s"], strict=True):
+            out = out + G * _lowpass(e, t, tau)
+    return out
+
+
+def _hyst_current(effects, psi) -> np.ndarray:
+    from .hysteresis import PlayHysteresis
+
+    hy = effects.get("hysteresis")
+    if not hy:
+        return np.zeros_like(psi)
+    shape = hy.get("shape")
+    play = PlayHysteresis(hy["thresholds"], hy["weights"],
+                          shape=None if not shape else (shape["b_nodes"], shape["g_nodes"]), b0=float(psi[0]))
+    return play.run(psi)
+
+
+# -- fits ----------------------------------------------------------------------------------------
+def fit_hysteresis(tables, effects, recordings) -> tuple[dict, dict]:
+    """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note)."""
+    from .hysteresis import fit_play_to_series
+
+    recs = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
+    if not recs:
+        recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
+    if not recs:
+        raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
+    bs, hs = [], []
+    for rec in recs:
+        t, psi, e, i, x = _flux_data(rec)
+        h = i - _i_f(tables, psi, x) - _eddy_current(tables, effects, e, t)
+        step = max(1, psi.size // 3000)  # rate-independent: a decimated series keeps the loops
+        bs.append(psi[::step])
+        hs.append(h[::step])
+    fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0)
+    d = fit.play.to_dict()
+    section = {"thresholds": d["thresholds"], "weights": d["weights"], "shape": d["shape"]}
+    return section, {"fitted_on": [_name(r) for r in recs], "rms_A": fit.rms}
+
+
+def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
+    """Eddy-current ladder by NNLS over fixed time constants; (section, note with the new G_eddy)."""
+    from scipy.optimize import nnls
+
+    recs = [r for r in recordings if r.kind == "eddy" and r.voltage_V is not None]
+    if not recs:
+        raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
+    rows, ys = [], []
+    for rec in recs:
+        t, psi, e, i, x = _flux_data(rec)
+        y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
+        cols = [e] + [_lowpass(e, t, tau) for tau in LADDER_TAUS_S]
+        rows.append(np.column_stack(cols))
+        ys.append(y)
+    A, y = np.vstack(rows), np.concatenate(ys)
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-30)
+    coef, _ = nnls(A / scale, y)
+    coef = coef / scale
+    G0, Gk = float(coef[0]), coef[1:]
+    total = G0 + float(Gk.sum())
+    keep = Gk > 0.03 * max(total, 1e-30)
+    if not keep.any():
+        raise ImproveError("eddy: no ladder section with a share above 3 % (a single G_eddy explains the data)")
+    section = {"G_S": [float(g) for g in Gk[keep]], "tau_s": [float(tau) for tau, k in zip(LADDER_TAUS_S, keep,
+                                                                                          strict=True) if k]}
+    return section, {"fitted_on": [_name(r) for r in recs], "G_eddy_S": G0}
+
+
+def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
+    """``C_th`` from the eq.-4 flux residual of current-driven recordings (see module docstring)."""
+    alpha = float(((tables.meta.get("coil") or {}).get("temperature_coefficient_per_K")) or 0.00393)
+    num = den = 0.0
+    used = []
+    for c in cases:
+        r = c.residuals.get("psi_Wb")
+        if r is None:
+            continue
+        t, i, R = c.time_s, c.current_A, c.resistance_ohm
+        dt = np.diff(t)
+        energy = np.concatenate([[0.0], np.cumsum(dt * i[1:] ** 2)])  # int i^2 dt
+        phi = alpha * R * R * np.concatenate([[0.0], np.cumsum(dt * i[1:] * energy[1:])])
+        num += float(phi @ r)
+        den += float(phi @ phi)
+        used.append(c.name)
+    if den <= 0.0 or num <= 0.0:
+        raise ImproveError("heating: the flux residual does not drift with the dissipated energy")
+    C_th = den / num
+    return ({"C_th_J_per_K": C_th, "R_th_K_per_W": 1.0, "alpha_per_K": alpha},
+            {"fitted_on": used})
+
+
+def _dahl(x: np.ndarray, presliding_m: float) -> np.ndarray:
+    """Dahl friction state for F_c = 1 along positions ``x`` (same update as model.py)."""
+    f = np.zeros_like(x)
+    for k in range(1, x.size):
+        dx = x[k] - x[k - 1]
+        prev = f[k - 1]
+        if dx != 0.0:
+            target = 1.0 if dx > 0.0 else -1.0
+            prev = target + (prev - target) * math.exp(-abs(dx) / presliding_m)
+        f[k] = prev
+    return f
+
+
+def fit_friction(tables, effects, cases) -> tuple[dict, dict]:
+    """Friction force and presliding length from the force residual where the armature moves."""
+    moving = [c for c in cases if "force_N" in c.residuals and np.ptp(c.position_m) > 0]
+    if not moving:
+        raise ImproveError("friction: no recording with force and a moving armature")
+    best = None
+    for p in PRESLIDING_M:
+        num = den = sse = 0.0
+        for c in moving:
+            phi = _dahl(np.asarray(c.position_m, dtype=float), p)
+            r = c.residuals["force_N"] - np.mean(c.residuals["force_N"])
+            phi0 = phi - phi.mean()
+            num += float(phi0 @ r)
+            den += float(phi0 @ phi0)
+        if den <= 0:
+            continue
+        Fc = num / den
+        for c in moving:
+            phi = _dahl(np.asarray(c.position_m, dtype=float), p)
+            r = c.residuals["force_N"] - np.mean(c.residuals["force_N"])
+            sse += float(np.sum((r - Fc * (phi - phi.mean())) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, Fc, p)
+    if best is None or best[1] <= 0.0:
+        raise ImproveError("friction: the force residual does not flip with the direction of motion")
+    return {"force_N": float(best[1]), "presliding_m": float(best[2])}, {"fitted_on": [c.name for c in moving]}
+
+
+# -- the loop ------------------------------------------------------------------------------------
+def _cases(tables, recordings, progress=None):
+    from .diagnose import residual_case
+    from .fmu import simulate_model
+
+    out = []
+    for rec in recordings:
+        if progress:
+            progress(f"simulating {_name(rec)}")
+        c = residual_case(rec, lambda r, R: simulate_model(tables, r, R_ohm=R))
+        if c is not None:
+            out.append(c)
+    return out
+
+
+def _error(cases, names) -> float:
+    """Mean over recordings in ``names`` and their signals of the squared NRMSE (range-normalized)."""
+    vals = []
+    for c in cases:
+        if c.name not in names:
+            continue
+        for sig, r in c.residuals.items():
+            span = float(np.ptp(c.measured[sig])) or 1.0
+            vals.append(float(np.mean(r**2)) / span**2)
+    return float(np.mean(vals)) if vals else 0.0
+
+
+def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS, min_gain: float = DEFAULT_MIN_GAIN,
+                   threshold: float | None = None, progress=None):
+    """Run the loop on in-process simulations; returns (improved tables, steps, diagnoses).
+
+    Parameters
+    ----------
+    tables : MapTables
+        The model's maps (an ``effects`` section already present is kept and built on).
+    recordings : list of Recording
+    max_effects : int
+        Upper limit of effects added.
+    min_gain : float
+        Relative fall of the validation error an effect must bring to be kept.
+    threshold : float, optional
+        Diagnosis threshold (default :data:`solenoid_fmu.diagnose.DEFAULT_THRESHOLD`).
+    """
+    from .diagnose import DEFAULT_THRESHOLD, diagnose
+
+    threshold = DEFAULT_THRESHOLD if threshold is None else threshold
+    say = progress or (lambda msg: None)
+    fit_recs, val_recs = split_recordings(recordings)
+    val_names = {_name(r) for r in val_recs}
+    fit_names = {_name(r) for r in fit_recs}
+    effects = dict(tables.meta.get("effects") or {})
+    steps: list[Step] = []
+    diagnoses = []
+    tried: set = set()
+    cases = _cases(tables, recordings, say)
+    while sum(s.accepted for s in steps) < max_effects:
+        d = diagnose(cases, threshold=threshold)
+        diagnoses.append(d.as_dict())
+        pick = next((c.effect for c in d.ranking if c.score >= threshold and c.effect in ADDABLE
+                     and c.effect not in tried and (d.verdict != "unexplained")), None)
+        if pick is None:
+            say("no further effect clears the diagnosis threshold")
+            break
+        tried.add(pick)
+        say(f"adding {pick} (diagnosis score {next(c.score for c in d.ranking if c.effect == pick):.3f})")
+        fit_cases = [c for c in cases if c.name in fit_names]
+        G_new = None
+        try:
+            if pick == "hysteresis":
+                section, note = fit_hysteresis(tables, effects, fit_recs)
+            elif pick == "eddy":
+                section, note = fit_eddy_ladder(tables, effects, fit_recs)
+                G_new = note["G_eddy_S"]
+            elif pick == "heating":
+                section, note = fit_heating(tables, effects, fit_cases)
+            else:
+                section, note = fit_friction(tables, effects, fit_cases)
+        except ImproveError as exc:
+            steps.append(Step(pick, False, note=str(exc)))
+            say(f"  not added: {exc}")
+            continue
+        trial_fx = dict(effects, **{ADDABLE[pick]: section})
+        trial = with_effects(tables, trial_fx, G_eddy_S=G_new)
+        trial_cases = _cases(trial, recordings, say)
+        before, after = _error(cases, val_names), _error(trial_cases, val_names)
+        ok = after < (1.0 - min_gain) * before
+        steps.append(Step(pick, ok, params=section, heldout_before=before, heldout_after=after,
+                          note=json.dumps(note)))
+        say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
+        if ok:
+            effects, tables, cases = trial_fx, trial, trial_cases
+    return tables, steps, diagnoses
+
+
+def write_maps_dir(tables: _model.MapTables, fmu_path, dest_dir) -> Path:
+    """Write the improved maps directory (the FMU's maps.npz, maps.json with the effects)."""
+    from .fileio import atomic_write_bytes, atomic_write_text
+
+    dest_dir = Path(dest_dir)
+    dest_dir.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(fmu_path) as zf:
+        atomic_write_bytes(dest_dir / "maps.npz", zf.read("resources/maps.npz"))
+    atomic_write_text(dest_dir / "maps.json", json.dumps(tables.meta, indent=1, sort_keys=True) + "\n")
+    return dest_dir
+
+
+def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
+            min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None) -> dict:
+    """Add the effects the residual asks for; build the improved FMU; report before and after.
+
+    Parameters
+    ----------
+    fmu_path : path-like
+        The FMU to improve (solenoid-fmu export; its maps travel inside it).
+    recordings : list of path-like or Recording
+    out_fmu : path-like
+        The improved FMU to write (its maps directory is written beside it, ``<stem>.maps/``).
+    report_dir : path-like, optional
+        Validation figures of the improved FMU and ``improve.json``.
+
+    Returns
+    -------
+    dict
+        ``{"effects_added": [...], "steps": [...], "fmu": ..., "improved_fmu": ..., "maps": ...,
+        "recordings": [{"file", "split", "signals": {signal: {"before", "after", "before_nrmse",
+        "after_nrmse"}}}], "before": validation dict, "after": validation dict}``; before/after are
+        RMS errors in the signal's unit from the FMUs (fmpy).
+    """
+    from .fmu import build_fmu
+    from .recordings import Recording, read_recording
+    from .validate import validate
+
+    say = progress or (lambda msg: None)
+    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
+    if not recs:
+        raise ImproveError("improve needs at least one recording")
+    tables, _ = tables_from_fmu(fmu_path)
+    improved, steps, diagnoses = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
+                                                threshold=threshold, progress=say)
+    out_fmu = Path(out_fmu)
+    maps_dir = write_maps_dir(improved, fmu_path, out_fmu.with_suffix(".maps"))
+    say(f"building {out_fmu}")
+    build_fmu(maps_dir, out_fmu)
+    say("validating the FMU before and after")
+    before = validate(fmu_path, recs)
+    after = validate(out_fmu, recs, report_dir=report_dir)
+    fit_recs, _ = split_recordings(recs)
+    fit_names = {_name(r) for r in fit_recs}
+    rows = []
+    after_by = {r["file"]: r for r in after["recordings"]}
+    for rb in before["recordings"]:
+        ra = after_by.get(rb["file"], {"signals": {}})
+        sig = {}
+        for name, m in rb["signals"].items():
+            a = ra["signals"].get(name, {})
+            sig[name] = {"before": m.get("rms"), "after": a.get("rms"), "before_nrmse": m.get("nrmse"),
+                         "after_nrmse": a.get("nrmse")}
+        rows.append({"file": rb["file"], "split": "fit" if rb["file"] in fit_names else "validate", "signals": sig})
+    result = {"fmu": str(fmu_path), "improved_fmu": str(out_fmu), "maps": str(maps_dir),
+              "effects_added": [s.effect for s in steps if s.accepted], "steps": [s.as_dict() for s in steps],
+              "diagnoses": diagnoses, "recordings": rows, "before": before, "after": after}
+    if report_dir is not None:
+        from .fileio import atomic_write_text
+
+        Path(report_dir).mkdir(parents=True, exist_ok=True)
+        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(_jsonable(result), indent=1) + "\n")
+    return result
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.generic):
+        return _jsonable(obj.item())
+    return obj
+
+
+# -- command line --------------------------------------------------------------------------------
+def add_cli(sub) -> None:
+    """Register ``solenoid-fmu improve``."""
+    p = sub.add_parser("improve", help="add the diagnosed effects to the model, fit, validate, export")
+    p.add_argument("fmu", help="the FMU to improve (solenoid-fmu export)")
+    p.add_argument("recordings", nargs="+", help="recording CSV files (format v1)")
+    p.add_argument("-o", "--output", required=True, help="the improved FMU to write")
+    p.add_argument("--report", help="directory for figures and improve.json")
+    p.add_argument("--max-effects", type=int, default=DEFAULT_MAX_EFFECTS)
+    p.add_argument("--min-gain", type=float, default=DEFAULT_MIN_GAIN,
+                   help="relative fall of the validation error an effect must bring (default 0.1)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args) -> int:
+    import sys
+
+    def progress(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    res = improve(args.fmu, args.recordings, args.output, report_dir=args.report, max_effects=args.max_effects,
+                  min_gain=args.min_gain, progress=progress)
+    if args.json:
+        out = {k: res[k] for k in ("effects_added", "steps", "recordings", "fmu", "improved_fmu")}
+        print(json.dumps(_jsonable(out)))
+        return 0
+    print(f"effects added: {', '.join(res['effects_added']) or 'none'}")
+    print(f"{'file':<28} {'split':<9} {'signal':<10} {'rms before':>12} {'rms after':>12} {'ratio':>7}")
+    for row in res["recordings"]:
+        for sig, m in row["signals"].items():
+            b, a = m["before"], m["after"]
+            ratio = a / b if b and a is not None else math.nan
+            print(f"{row['file']:<28} {row['split']:<9} {sig:<10} {b:12.4g} {a:12.4g} {ratio:7.3f}")
+    print(f"wrote {res['improved_fmu']}")
+    return 0
+
+
+__all__ = ["ADDABLE", "ImproveError", "Step", "fit_eddy_ladder", "fit_friction", "fit_heating", "fit_hysteresis",
+           "improve", "improve_tables", "split_recordings", "tables_from_fmu", "with_effects", "write_maps_dir"]
