@@ -70,6 +70,12 @@ class ResidualCase:
         ``psi_Wb``).
     measured : dict of str -> ndarray
         The measured signals with the same keys (for the sensor signature and normalization).
+    kind : str
+        The recording kind (``flux``, ``force_stroke``, ...); "" when not from a recording.
+    drive : str
+        How the FMU was driven (``"current"`` or ``"voltage"``); "" when not from a recording.
+    path : str
+        The recording's full path; "" when not from a file.
     """
 
     name: str
@@ -80,6 +86,9 @@ class ResidualCase:
     resistance_ohm: float
     residuals: dict
     measured: dict
+    kind: str = ""
+    drive: str = ""
+    path: str = ""
 
 
 @dataclass
@@ -385,7 +394,8 @@ def cases_from_recordings(fmu_path, recordings, progress=None) -> list[ResidualC
             continue
         R = rec.coil_resistance_ohm or 1.0
         cases.append(ResidualCase(name, np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
-                                  np.asarray(rec.positions_m()), R, residuals, measured))
+                                  np.asarray(rec.positions_m()), R, residuals, measured, kind=rec.kind,
+                                  drive=sim.drive_mode, path="" if rec.path is None else str(rec.path)))
     return cases
 
 
