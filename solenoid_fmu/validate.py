@@ -5,14 +5,14 @@ For each recording the FMU is driven by the recording's measured inputs
 :func:`solenoid_fmu.fmu.simulate_recording`): current-driven for ``flux``, ``force_stroke``,
 ``ramp`` and ``eddy``, voltage-driven for ``voltage_step``. The outputs compared:
 
-============ ======================================================================================
-signal       measured vs simulated
-============ ======================================================================================
-``force_N``  the measured force vs the FMU's F(Psi, x) (paper eq. 3), where the recording has force
-``psi_Wb``   flux linkage from the measured voltage (paper eq. 4, offset removed) vs the FMU's Psi,
-             for current-driven runs with a voltage column
+============= =====================================================================================
+signal        measured vs simulated
+============= =====================================================================================
+``force_N``   the measured force vs the FMU's F(Psi, x) (paper eq. 3), where the recording has force
+``psi_Wb``    flux linkage from the measured voltage (paper eq. 4, offset removed) vs the FMU's Psi,
+              for current-driven runs with a voltage column
 ``current_A`` the measured current vs the FMU's (paper eqs. 1-2), for voltage-driven runs
-============ ======================================================================================
+============= =====================================================================================
 
 Metrics per recording and signal (:func:`signal_metrics`), with ``e = measured - simulated``:
 

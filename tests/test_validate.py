@@ -143,6 +143,23 @@ def test_a_wrong_eddy_conductance_gives_larger_errors(setup, good_result):
     assert wrong["figures"] == [] and all(r["figures"] == {} for r in wrong["recordings"])
 
 
+def test_a_wrong_coil_resistance_gives_a_larger_current_error(setup, good_result):
+    """The voltage step simulated with R 20 % high (header value) ends at a current 1/1.2 of the measured."""
+    import dataclasses
+
+    from solenoid_fmu.recordings import read_recording
+
+    good, _ = good_result
+    f = next(p for p in setup["files"] if "voltage_step" in p.name)
+    rec = read_recording(f)
+    header = dict(rec.header, coil_resistance_ohm=repr(1.2 * rec.coil_resistance_ohm))
+    wrong = validate(setup["good"], [dataclasses.replace(rec, header=header)])["recordings"][0]["signals"]
+    g = next(r for r in good["recordings"] if r["kind"] == "voltage_step")["signals"]
+    i_end = float(rec.current_A[rec.time_s <= 0.3 + 0.29][-1])  # end of the 0.3 s step
+    assert wrong["current_A"]["max"] == pytest.approx(i_end * (1 - 1 / 1.2), rel=0.1)
+    assert wrong["current_A"]["nrmse"] > 5 * g["current_A"]["nrmse"]
+
+
 def test_figures_are_png_and_listed(setup, good_result):
     res, _ = good_result
     report = setup["base"] / "report-good"
