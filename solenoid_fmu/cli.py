@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "eddy",
     "fmu",
     "validate",
+    "improve",
     "diagnose",
     "pipeline",
 )

@@ -175,41 +175,16 @@ def test_no_cases_is_an_error():
 
 
 # -- end to end: rig campaigns with one undeclared effect, diagnosed through the real FMU ----------
-@pytest.fixture(scope="module")
-def rig_setup(tmp_path_factory):
-    import mapsfixture
-
-    from solenoid_fmu.fmu import build_fmu
-    from solenoid_fmu.model import load_tables
-
-    base = tmp_path_factory.mktemp("diag")
-    maps_dir = mapsfixture.write_maps(base / "maps")  # with a single eddy term, in truth and FMU alike
-    return load_tables(maps_dir), maps_dir, build_fmu(maps_dir, base / "plain.fmu"), base
-
-
-def _campaign():
-    from solenoid_fmu.rig import CampaignConfig
-
-    return CampaignConfig(
-        flux_peaks_A=(0.5, 1.0, 1.5), flux_cycles=1, flux_rate_A_per_s=2.0, flux_sample_rate_Hz=200.0,
-        stroke_currents_A=(0.5, 1.0, 1.5), stroke_from_m=2.5e-3, stroke_to_m=0.6e-3, stroke_speed_m_per_s=1e-3,
-        stroke_sample_rate_Hz=50.0, ramp_sample_rate_Hz=1000.0, ramp_hold_s=0.1,
-        eddy_rates_A_per_s=(25.0,), eddy_cycles=1, eddy_sample_rate_Hz=2000.0,
-        step_hold_s=0.3, step_sample_rate_Hz=1000.0, pause_s=5.0)
-
-
 @pytest.mark.parametrize(("effects", "expected"), [("friction", "friction"), ("hysteresis", "hysteresis"),
-                                                   ("eddy-ladder", "eddy"), ("", "unexplained")])
-def test_cli_diagnose_names_the_undeclared_effect(rig_setup, effects, expected, capsys):
+                                                   ("eddy-ladder", "eddy"), ("heating", "heating"),
+                                                   ("", "unexplained")])
+def test_cli_diagnose_names_the_undeclared_effect(rig_maps, rig_campaign, effects, expected, capsys):
     import json
 
     from solenoid_fmu.cli import main
-    from solenoid_fmu.rig import Effects, run_campaign
 
-    tables, maps_dir, fmu, base = rig_setup
-    out = base / f"camp-{effects or 'none'}"
-    run_campaign(tables, out, effects=Effects.from_names(effects), campaign=_campaign(), seed=3, maps_dir=maps_dir)
-    files = sorted(str(p) for p in (out / "recordings").glob("*.csv"))
+    fmu = rig_maps[2]
+    files = rig_campaign(effects)
     assert main(["diagnose", str(fmu), *files, "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["verdict"] == expected, d["ranking"]

@@ -1,0 +1,56 @@
+"""Shared fixtures: small rig campaigns with undeclared effects (cached across test modules and workers)."""
+
+import os
+import shutil
+import uuid
+
+import pytest
+
+
+def small_campaign():
+    """A short campaign of every kind (a few seconds of rig time per recording)."""
+    from solenoid_fmu.rig import CampaignConfig
+
+    return CampaignConfig(
+        flux_peaks_A=(0.5, 1.0, 1.5), flux_cycles=1, flux_rate_A_per_s=2.0, flux_sample_rate_Hz=200.0,
+        stroke_currents_A=(0.5, 1.0, 1.5), stroke_from_m=2.5e-3, stroke_to_m=0.6e-3, stroke_speed_m_per_s=1e-3,
+        stroke_sample_rate_Hz=50.0, ramp_sample_rate_Hz=1000.0, ramp_hold_s=0.1,
+        eddy_rates_A_per_s=(25.0, 100.0), eddy_cycles=1, eddy_sample_rate_Hz=4000.0,
+        step_hold_s=0.3, step_sample_rate_Hz=1000.0, pause_s=5.0)
+
+
+@pytest.fixture(scope="session")
+def rig_maps(tmp_path_factory):
+    """(tables, maps_dir, plain FMU, shared dir): synthetic maps with a single eddy term and their FMU."""
+    import mapsfixture
+
+    from solenoid_fmu.fmu import build_fmu
+    from solenoid_fmu.model import load_tables
+
+    base = tmp_path_factory.mktemp("rig")
+    maps_dir = mapsfixture.write_maps(base / "maps")
+    shared = tmp_path_factory.getbasetemp().parent / "campaigns"  # shared by xdist workers
+    shared.mkdir(exist_ok=True)
+    return load_tables(maps_dir), maps_dir, build_fmu(maps_dir, base / "plain.fmu"), shared
+
+
+@pytest.fixture(scope="session")
+def rig_campaign(rig_maps):
+    """Factory: effects string -> sorted recording paths of the small campaign with those effects."""
+    from solenoid_fmu.rig import Effects, run_campaign
+
+    tables, maps_dir, _, shared = rig_maps
+
+    def make(effects: str):
+        final = shared / f"camp-{effects.replace(',', '+') or 'none'}"
+        if not final.is_dir():
+            tmp = shared / f".tmp-{uuid.uuid4().hex}"
+            run_campaign(tables, tmp, effects=Effects.from_names(effects), campaign=small_campaign(), seed=3,
+                         maps_dir=maps_dir)
+            try:
+                os.rename(tmp, final)  # atomic: another worker may have made the same campaign meanwhile
+            except OSError:
+                shutil.rmtree(tmp, ignore_errors=True)
+        return sorted(str(p) for p in (final / "recordings").glob("*.csv"))
+
+    return make

@@ -1,0 +1,106 @@
+"""The improvement loop on rig campaigns with undeclared effects (issue 7, "Must show")."""
+
+import json
+
+import numpy as np
+import pytest
+
+from solenoid_fmu.improve import ImproveError, improve_tables, split_recordings
+from solenoid_fmu.recordings import read_recording
+
+#: Which residual signal each effect shows in.
+AFFECTED = {"hysteresis": "psi_Wb", "heating": "psi_Wb", "eddy": "psi_Wb", "friction": "force_N"}
+
+
+def _rms(tables, recs, signal):
+    from solenoid_fmu.improve import _cases
+
+    res = [c.residuals[signal] for c in _cases(tables, recs) if signal in c.residuals]
+    return float(np.sqrt(np.mean(np.concatenate(res) ** 2)))
+
+
+@pytest.mark.parametrize(("effects", "expected"), [("hysteresis", "hysteresis"), ("heating", "heating"),
+                                                   ("eddy-ladder", "eddy"), ("friction", "friction")])
+def test_one_undeclared_effect_is_named_added_and_cuts_the_error(rig_maps, rig_campaign, effects, expected):
+    tables = rig_maps[0]
+    recs = [read_recording(p) for p in rig_campaign(effects)]
+    improved, steps, diagnoses = improve_tables(tables, recs)
+    assert diagnoses[0]["ranking"][0]["effect"] == expected
+    assert diagnoses[0]["verdict"] == expected
+    assert [s.effect for s in steps if s.accepted] == [expected]
+    sig = AFFECTED[expected]
+    before, after = _rms(tables, recs, sig), _rms(improved, recs, sig)
+    assert after < before / 3.0, (before, after)
+
+
+def test_fitted_parameters_are_those_of_the_truth(rig_maps, rig_campaign):
+    """Heating and friction have parameters the rig states: C_th 300 J/K, F_c 2.5 N, 20 um."""
+    tables = rig_maps[0]
+    _, steps, _ = improve_tables(tables, [read_recording(p) for p in rig_campaign("heating")])
+    assert steps[0].params["C_th_J_per_K"] == pytest.approx(300.0, rel=0.08)
+    _, steps, _ = improve_tables(tables, [read_recording(p) for p in rig_campaign("friction")])
+    assert steps[0].params["force_N"] == pytest.approx(2.5, rel=0.05)
+
+
+def test_no_effect_adds_nothing(rig_maps, rig_campaign):
+    recs = [read_recording(p) for p in rig_campaign("")]
+    improved, steps, diagnoses = improve_tables(rig_maps[0], recs)
+    assert steps == []
+    assert diagnoses[-1]["verdict"] == "unexplained"
+    assert not improved.meta.get("effects")
+
+
+def test_two_effects_are_both_found_in_order_of_size(rig_maps, rig_campaign):
+    recs = [read_recording(p) for p in rig_campaign("heating,eddy-ladder")]
+    _, steps, _ = improve_tables(rig_maps[0], recs)
+    kept = [s for s in steps if s.accepted]
+    assert sorted(s.effect for s in kept) == ["eddy", "heating"]
+    gains = [s.heldout_before - s.heldout_after for s in kept]
+    assert gains[0] > gains[1] > 0  # the first one added is the larger
+
+
+def test_split_keeps_the_largest_excitation_for_fitting_and_validates_on_the_rest(rig_campaign):
+    recs = [read_recording(p) for p in rig_campaign("")]
+    fit, val = split_recordings(recs)
+    names = lambda rs: sorted(r.path.name for r in rs)  # noqa: E731
+    assert set(names(fit)).isdisjoint(names(val)) and len(fit) + len(val) == len(recs)
+    assert "03_flux_1p50A.csv" in names(fit) and "02_flux_1p00A.csv" in names(val)
+    assert all(r.kind not in ("ramp", "voltage_step") for r in fit)  # single recordings: validation only
+
+
+def test_cli_improve_builds_a_switchable_fmu_and_reports_before_after(rig_maps, rig_campaign, tmp_path, capsys):
+    import fmpy.validation
+
+    from solenoid_fmu.cli import main
+    from solenoid_fmu.fmu import simulate_recording
+
+    fmu = rig_maps[2]
+    files = rig_campaign("hysteresis,friction")
+    out = tmp_path / "improved.fmu"
+    assert main(["improve", str(fmu), *files, "-o", str(out), "--json", "--report", str(tmp_path / "rep")]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["effects_added"] == ["hysteresis", "friction"]
+    assert fmpy.validation.validate_fmu(str(out)) == []
+    rows = {r["file"]: r for r in res["recordings"]}
+    assert {r["split"] for r in rows.values()} == {"fit", "validate"}
+    stroke = rows["05_force_stroke_1p00A.csv"]["signals"]["force_N"]  # a validation recording
+    assert stroke["after"] < stroke["before"] / 3.0
+    flux = rows["02_flux_1p00A.csv"]["signals"]["psi_Wb"]
+    assert flux["after"] < flux["before"] / 2.0
+    assert (tmp_path / "rep" / "improve.json").is_file()
+    # the effects are switchable: switched off, the improved FMU is the plain one
+    rec = read_recording(files[4])
+    plain = simulate_recording(fmu, rec).recording
+    off = simulate_recording(out, rec, params={"hysteresis_on": False, "friction_on": False}).recording
+    np.testing.assert_allclose(off.force_N, plain.force_N, rtol=1e-12, atol=1e-12)
+    on = simulate_recording(out, rec).recording
+    assert np.max(np.abs(on.force_N - plain.force_N)) > 1.0
+
+
+def test_improve_refuses_a_file_that_is_not_an_fmu(tmp_path, rig_campaign):
+    from solenoid_fmu.improve import improve
+
+    bad = tmp_path / "x.fmu"
+    bad.write_text("not a zip")
+    with pytest.raises(ImproveError, match="x.fmu"):
+        improve(bad, rig_campaign("")[:2], tmp_path / "o.fmu")
