@@ -45,6 +45,7 @@ import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -80,6 +81,18 @@ class Step:
         return {"effect": self.effect, "accepted": self.accepted, "params": self.params,
                 "heldout_error_before": self.heldout_before, "heldout_error_after": self.heldout_after,
                 "note": self.note}
+
+
+class Improvement(NamedTuple):
+    """Outcome of :func:`improve_tables`: the model's maps with the kept effects, every tried
+    :class:`Step`, the diagnosis of each round (dicts), and the residual cases of the first and
+    the final model (in-process simulations of all recordings)."""
+
+    tables: _model.MapTables
+    steps: list
+    diagnoses: list
+    cases_before: list
+    cases_after: list
 
 
 # -- tables with effects -------------------------------------------------------------------------
@@ -327,8 +340,8 @@ def _error(cases, names) -> float:
 
 
 def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS, min_gain: float = DEFAULT_MIN_GAIN,
-                   threshold: float | None = None, progress=None):
-    """Run the loop on in-process simulations; returns (improved tables, steps, diagnoses).
+                   threshold: float | None = None, progress=None) -> Improvement:
+    """Run the loop on in-process simulations (see the module docstring).
 
     Parameters
     ----------
@@ -353,7 +366,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     steps: list[Step] = []
     diagnoses = []
     tried: set = set()
-    cases = _cases(tables, recordings, say)
+    cases = cases0 = _cases(tables, recordings, say)
     while sum(s.accepted for s in steps) < max_effects:
         d = diagnose(cases, threshold=threshold)
         diagnoses.append(d.as_dict())
@@ -390,7 +403,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
         if ok:
             effects, tables, cases = trial_fx, trial, trial_cases
-    return tables, steps, diagnoses
+    return Improvement(tables, steps, diagnoses, cases0, cases)
 
 
 def write_maps_dir(tables: _model.MapTables, fmu_path, dest_dir) -> Path:
@@ -436,8 +449,8 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
     if not recs:
         raise ImproveError("improve needs at least one recording")
     tables, _ = tables_from_fmu(fmu_path)
-    improved, steps, diagnoses = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
-                                                threshold=threshold, progress=say)
+    improved, steps, diagnoses, _, _ = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
+                                                      threshold=threshold, progress=say)
     out_fmu = Path(out_fmu)
     maps_dir = write_maps_dir(improved, fmu_path, out_fmu.with_suffix(".maps"))
     say(f"building {out_fmu}")
@@ -518,5 +531,6 @@ def _cli(args) -> int:
     return 0
 
 
-__all__ = ["ADDABLE", "ImproveError", "Step", "fit_eddy_ladder", "fit_friction", "fit_heating", "fit_hysteresis",
+__all__ = ["ADDABLE", "ImproveError", "Improvement", "Step", "fit_eddy_ladder", "fit_friction", "fit_heating",
+           "fit_hysteresis",
            "improve", "improve_tables", "split_recordings", "tables_from_fmu", "with_effects", "write_maps_dir"]

@@ -12,48 +12,48 @@ from solenoid_fmu.recordings import read_recording
 AFFECTED = {"hysteresis": "psi_Wb", "heating": "psi_Wb", "eddy": "psi_Wb", "friction": "force_N"}
 
 
-def _rms(tables, recs, signal):
-    from solenoid_fmu.improve import _cases
+_CACHE = {}
 
-    res = [c.residuals[signal] for c in _cases(tables, recs) if signal in c.residuals]
+
+def _improved(rig_maps, rig_campaign, effects):
+    """improve_tables on a campaign, once per test process."""
+    if effects not in _CACHE:
+        recs = [read_recording(p) for p in rig_campaign(effects)]
+        _CACHE[effects] = improve_tables(rig_maps[0], recs)
+    return _CACHE[effects]
+
+
+def _rms(cases, signal):
+    res = [c.residuals[signal] for c in cases if signal in c.residuals]
     return float(np.sqrt(np.mean(np.concatenate(res) ** 2)))
 
 
 @pytest.mark.parametrize(("effects", "expected"), [("hysteresis", "hysteresis"), ("heating", "heating"),
                                                    ("eddy-ladder", "eddy"), ("friction", "friction")])
 def test_one_undeclared_effect_is_named_added_and_cuts_the_error(rig_maps, rig_campaign, effects, expected):
-    tables = rig_maps[0]
-    recs = [read_recording(p) for p in rig_campaign(effects)]
-    improved, steps, diagnoses = improve_tables(tables, recs)
-    assert diagnoses[0]["ranking"][0]["effect"] == expected
-    assert diagnoses[0]["verdict"] == expected
-    assert [s.effect for s in steps if s.accepted] == [expected]
+    res = _improved(rig_maps, rig_campaign, effects)
+    assert res.diagnoses[0]["ranking"][0]["effect"] == expected
+    assert res.diagnoses[0]["verdict"] == expected
+    assert [s.effect for s in res.steps if s.accepted] == [expected]
     sig = AFFECTED[expected]
-    before, after = _rms(tables, recs, sig), _rms(improved, recs, sig)
+    before, after = _rms(res.cases_before, sig), _rms(res.cases_after, sig)
     assert after < before / 3.0, (before, after)
-
-
-def test_fitted_parameters_are_those_of_the_truth(rig_maps, rig_campaign):
-    """Heating and friction have parameters the rig states: C_th 300 J/K, F_c 2.5 N, 20 um."""
-    tables = rig_maps[0]
-    _, steps, _ = improve_tables(tables, [read_recording(p) for p in rig_campaign("heating")])
-    assert steps[0].params["C_th_J_per_K"] == pytest.approx(300.0, rel=0.08)
-    _, steps, _ = improve_tables(tables, [read_recording(p) for p in rig_campaign("friction")])
-    assert steps[0].params["force_N"] == pytest.approx(2.5, rel=0.05)
+    if expected == "heating":  # the rig's thermal model: C_th = 300 J/K
+        assert res.steps[0].params["C_th_J_per_K"] == pytest.approx(300.0, rel=0.08)
+    if expected == "friction":  # the rig's friction: 2.5 N, presliding 20 um
+        assert res.steps[0].params["force_N"] == pytest.approx(2.5, rel=0.05)
+        assert res.steps[0].params["presliding_m"] == pytest.approx(20e-6, rel=0.5)
 
 
 def test_no_effect_adds_nothing(rig_maps, rig_campaign):
-    recs = [read_recording(p) for p in rig_campaign("")]
-    improved, steps, diagnoses = improve_tables(rig_maps[0], recs)
-    assert steps == []
-    assert diagnoses[-1]["verdict"] == "unexplained"
-    assert not improved.meta.get("effects")
+    res = _improved(rig_maps, rig_campaign, "")
+    assert res.steps == []
+    assert res.diagnoses[-1]["verdict"] == "unexplained"
+    assert not res.tables.meta.get("effects")
 
 
 def test_two_effects_are_both_found_in_order_of_size(rig_maps, rig_campaign):
-    recs = [read_recording(p) for p in rig_campaign("heating,eddy-ladder")]
-    _, steps, _ = improve_tables(rig_maps[0], recs)
-    kept = [s for s in steps if s.accepted]
+    kept = [s for s in _improved(rig_maps, rig_campaign, "heating,eddy-ladder").steps if s.accepted]
     assert sorted(s.effect for s in kept) == ["eddy", "heating"]
     gains = [s.heldout_before - s.heldout_after for s in kept]
     assert gains[0] > gains[1] > 0  # the first one added is the larger
