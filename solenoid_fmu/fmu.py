@@ -43,6 +43,10 @@ infinite input, ``R_ohm <= 0`` or ``G_eddy_S < 0`` is logged with status ``fmi2E
 value, and ``fmi2DoStep`` returns ``fmi2Discard`` with the state unchanged (the instance stays
 usable once the input is fixed). A native (C) backend can return ``fmi2Error`` directly.
 
+Backends (:data:`BACKENDS`): ``python`` packs the model for pythonfmu (above; co-simulation,
+needs Python with numpy where it runs); ``c`` generates and compiles native C with the same
+variables plus model exchange (:mod:`solenoid_fmu.fmu_c`).
+
 ``simulate_recording(fmu, recording)`` drives an FMU with fmpy from a recording's measured inputs
 and returns a recording in the same format (CLI ``solenoid-fmu simulate``).
 """

@@ -51,8 +51,11 @@ from . import model as _model
 from .errors import FmuBuildError
 
 __all__ = [
-    "C_SOURCE",
     "CFLAGS",
+    "C_PARAMS",
+    "C_SOURCE",
+    "C_STATE_LAYOUT",
+    "C_STATE_NAMES",
     "FMI_HEADERS",
     "ME_VARIABLES",
     "build_c_fmu",
@@ -69,6 +72,13 @@ C_SOURCE = Path(__file__).with_name("c") / "solenoid_fmu.c"
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 #: Compiler flags of the binary (gcc/clang syntax).
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror")
+#: The state layout and parameters solenoid_fmu/c/solenoid_fmu.c implements (enum ST_*, struct Core).
+#: :func:`build_c_fmu` refuses to build when :mod:`solenoid_fmu.model` has moved on (new effects):
+#: the C code must then gain the same states and parameters first.
+C_STATE_LAYOUT = 1
+C_STATE_NAMES = ("state_layout", "time_s", "psi_Wb", "initialized", "excursion_psi", "excursion_x",
+                 "excursion_extrapolated", "out_i_A", "out_U_V", "out_F_N", "out_dpsi_dt_V", "out_i_eddy_A")
+C_PARAMS = ("R_ohm", "G_eddy_S", "drive_mode", "Psi0_Wb", "h_sub_max_s")
 #: Model-exchange locals after the 15 variables of :data:`solenoid_fmu.fmu.VARIABLES`:
 #: (name, unit, description); value references 15 and 16.
 ME_VARIABLES = (
@@ -178,6 +188,18 @@ if(NOT MSVC)
   target_link_libraries(@ID@ m)
 endif()
 """
+
+
+def _check_model_version() -> None:
+    """Refuse to generate C for a model.py whose states or parameters the C template lacks."""
+    if (_model.STATE_LAYOUT != C_STATE_LAYOUT or tuple(_model.STATE_NAMES) != C_STATE_NAMES
+            or tuple(_model.DEFAULT_PARAMS) != C_PARAMS):
+        raise FmuBuildError(
+            f"the native backend implements model state layout {C_STATE_LAYOUT} ({len(C_STATE_NAMES)} states, "
+            f"parameters {', '.join(C_PARAMS)}); solenoid_fmu/model.py has layout {_model.STATE_LAYOUT} "
+            f"({len(_model.STATE_NAMES)} states, parameters {', '.join(_model.DEFAULT_PARAMS)}). Port the new "
+            "effects to solenoid_fmu/c/solenoid_fmu.c (enum ST_*, struct Core, sol_step) and update "
+            "solenoid_fmu.fmu_c.C_STATE_NAMES / C_PARAMS, or export with --backend python")
 
 
 def _default_params(tables: _model.MapTables) -> dict:
@@ -292,6 +314,7 @@ def build_c_fmu(maps_dir, dest, tables: _model.MapTables) -> str:
     """
     from .fmu import MODEL_IDENTIFIER
 
+    _check_model_version()
     maps_dir = Path(maps_dir)
     platform, ext = _platform()
     params = _default_params(tables)

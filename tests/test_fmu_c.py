@@ -382,3 +382,14 @@ def test_c_host_runs_clean_under_valgrind(host, unzipped, md, tmp_path):
                      prefix=(valgrind, "-q", "--error-exitcode=1", "--leak-check=full",
                              "--errors-for-leak-kinds=definite,indirect,possible"))
     assert "Invalid read" not in proc.stderr and "definitely lost" not in proc.stderr
+
+
+def test_build_refuses_a_model_with_states_the_c_code_lacks(maps_dir, tmp_path, monkeypatch):
+    """When model.py gains effects (new states), the native export stops instead of exporting the old model."""
+    from solenoid_fmu.errors import FmuBuildError
+
+    monkeypatch.setattr(M, "STATE_NAMES", (*M.STATE_NAMES, "hysteresis_state"))
+    monkeypatch.setattr(M, "STATE_LAYOUT", M.STATE_LAYOUT + 1)
+    with pytest.raises(FmuBuildError, match="Port the new effects"):
+        F.build_fmu(maps_dir, tmp_path / "x.fmu", backend="c")
+    assert not list(tmp_path.glob("*.fmu"))
