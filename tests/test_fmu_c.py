@@ -393,3 +393,30 @@ def test_build_refuses_a_model_with_states_the_c_code_lacks(maps_dir, tmp_path, 
     with pytest.raises(FmuBuildError, match="Port the new effects"):
         F.build_fmu(maps_dir, tmp_path / "x.fmu", backend="c")
     assert not list(tmp_path.glob("*.fmu"))
+
+
+def test_gap_excursion_logged_once_per_excursion_and_flagged(md, unzipped):
+    inst = Instance(md, unzipped).init(mode="current", u=1.0, G_eddy_S=0.0)
+    flags = []
+    for x in (2e-3, 4e-3, 5e-3, 6e-3, 2e-3, 2e-3, 0.1e-3, 0.05e-3, 1e-3):
+        inst.step(1e-3, 1.0, x)
+        flags.append(inst.fmu.getBoolean([inst.vr["out_of_map"]])[0])
+    inst.free()
+    warnings = [m for s, m in inst.messages if s == 1]
+    assert len(warnings) == 2
+    assert "x_m = 0.004 m is outside" in warnings[0] and "x_m = 0.0001 m is outside" in warnings[1]
+    assert flags == [False, True, True, True, False, False, True, True, False]
+
+
+def test_work_per_step_is_bounded(md, unzipped):
+    """A step that would need more than 1e7 sub-steps is refused (real time: bounded work per doStep)."""
+    inst = Instance(md, unzipped).init(mode="voltage", u=24.0)
+    before = inst.outputs()
+    with pytest.raises(FMICallException) as info:
+        inst.step(1e4, 24.0)
+    assert info.value.status == 3 and inst.outputs() == before
+    assert any(s == 3 and "sub-steps" in m for s, m in inst.messages)
+    inst.t = 0.0
+    out = inst.step(0.5, 24.0)  # 5000 sub-steps: fine
+    inst.free()
+    assert out[3] > before[3]

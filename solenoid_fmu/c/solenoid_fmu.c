@@ -42,6 +42,8 @@
 #define NEWTON_TOL_REL 1e-12
 #define DRIVE_VOLTAGE 1
 #define DRIVE_CURRENT 2
+/* Bound of the work of one fmi2DoStep: ceil(h / h_sub_max_s) sub-steps at most (else fmi2Error). */
+#define MAX_SUBSTEPS 10000000.0
 
 /* The state vector of model.py (STATE_NAMES, STATE_LAYOUT = 1). */
 #define STATE_LAYOUT 1.0
@@ -861,6 +863,11 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     u = c->voltage ? c->u_V : c->i_A;
     if (!(h > 0.0 && is_finite(h))) { say(in, fmi2Error, "doStep at t = %.17g s: communication step must be finite and > 0 s, got %.17g", t, h); return fmi2Error; }
     if (!is_finite(t)) { say(in, fmi2Error, "doStep: step start time %.17g is not finite", t); return fmi2Error; }
+    if (c->ready && ceil(h * c->inv_hsub - 1e-9) > MAX_SUBSTEPS) {
+        say(in, fmi2Error, "doStep at t = %.17g s: step h = %.17g s needs more than %.0f sub-steps of h_sub_max_s "
+            "= %.17g s; take shorter communication steps or raise h_sub_max_s", t, h, MAX_SUBSTEPS, c->hsub);
+        return fmi2Error;
+    }
     if (c->dirty) {
         if (c->ready) {
             if (!apply_params(in, 0)) return fmi2Error;
