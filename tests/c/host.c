@@ -12,7 +12,8 @@
  * 4. FMU state: get/set state round trip, and serialize -> deserialize into another instance.
  * 5. NaN input: fmi2DoStep returns fmi2Error and the outputs are unchanged.
  * 6. long run: N_LONG voltage-driven steps of 1e-4 s with a changing input; no allocation during
- *    the run (counted through the allocateMemory callback); prints ns per step.
+ *    the run (counted through the allocateMemory callback); prints ns per step (ns_per_step). Then
+ *    N_LONG current-driven steps with G_eddy = 0 (a Newton solve per step): ns_per_step_current_G0.
  *
  * Prints one "ok <check>" line per check and "ns_per_step <value>"; exits 1 on the first failure.
  */
@@ -270,6 +271,25 @@ int main(int argc, char **argv)
         ns = ((t1.tv_sec - t0.tv_sec) * 1e9 + (t1.tv_nsec - t0.tv_nsec)) / (double)(n_long > 0 ? n_long : 1);
         printf("ok long_run %ld steps\n", n_long);
         printf("ns_per_step %.1f\n", ns);
+        F.terminate(c);
+        F.freeInstance(c);
+
+        /* the algebraic case (current mode, G = 0): a Newton solve per step, its worst-case path */
+        c = start("long_current", 2, 0.0, x, 0.0);
+        vr_in[0] = VR_I;
+        alloc0 = n_alloc;
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        for (k = 0; k < n_long; k++) {
+            in[0] = 2.0 * fabs(sin(1e-3 * k));
+            in[1] = x;
+            F.setReal(c, vr_in, 2, in);
+            if (F.doStep(c, k * h, h, fmi2True) != fmi2OK) CHECK(0, "long current run doStep");
+            F.getReal(c, vr_out, 3, y);
+        }
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        CHECK(n_alloc == alloc0, "no allocation during the current-mode run");
+        ns = ((t1.tv_sec - t0.tv_sec) * 1e9 + (t1.tv_nsec - t0.tv_nsec)) / (double)(n_long > 0 ? n_long : 1);
+        printf("ns_per_step_current_G0 %.1f\n", ns);
         F.terminate(c);
         F.freeInstance(c);
     }
