@@ -420,3 +420,23 @@ def test_work_per_step_is_bounded(md, unzipped):
     out = inst.step(0.5, 24.0)  # 5000 sub-steps: fine
     inst.free()
     assert out[3] > before[3]
+
+
+def test_me_refuses_nan_and_logs_excursions_at_accepted_steps(md, unzipped):
+    inst = MeInstance(md, unzipped, "voltage", 0.0, X_M)
+    inst.set_inputs(24.0, 5e-3)  # beyond the map's 3.5 mm
+    inst.eval(0.1)
+    assert not [m for s, m in inst.messages if s == 1]  # trial evaluations log nothing
+    inst.fmu.completedIntegratorStep()
+    inst.fmu.completedIntegratorStep()
+    assert inst.fmu.getBoolean([inst.vr["out_of_map"]]) == [True]
+    warnings = [m for s, m in inst.messages if s == 1]
+    assert len(warnings) == 1 and "x_m = 0.005 m is outside" in warnings[0]
+    inst.set_inputs(math.nan, X_M)
+    with pytest.raises(FMICallException) as info:
+        inst.eval(0.1)
+    assert info.value.status == 3
+    assert any(s == 3 and "U_V = nan is not finite" in m for s, m in inst.messages)
+    inst.set_inputs(24.0, X_M)
+    assert inst.eval(0.1)[0] > 0.0  # usable again once the input is fixed
+    inst.free()
