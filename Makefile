@@ -27,6 +27,7 @@ demo: setup
 	$(BIN)/solenoid-fmu solve --x-mm 1.5 --i-A 1.5 --plot $(DEMO)/field.png
 	$(BIN)/solenoid-fmu maps --from maps/ps45-literature --plot $(DEMO)/maps
 	$(BIN)/python examples/ex_fmu_ramp.py maps/ps45-literature $(DEMO)
+	$(BIN)/solenoid-fmu export maps/ps45-literature -o $(DEMO)/ps45-native.fmu --backend c
 
 # Regenerates the shipped PS45 map (literature steel) with its plots and exports (~1 min).
 maps: setup

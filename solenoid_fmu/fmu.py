@@ -43,6 +43,10 @@ infinite input, ``R_ohm <= 0`` or ``G_eddy_S < 0`` is logged with status ``fmi2E
 value, and ``fmi2DoStep`` returns ``fmi2Discard`` with the state unchanged (the instance stays
 usable once the input is fixed). A native (C) backend can return ``fmi2Error`` directly.
 
+Backends (:data:`BACKENDS`): ``python`` packs the model for pythonfmu (above; co-simulation,
+needs Python with numpy where it runs); ``c`` generates and compiles native C with the same
+variables plus model exchange (:mod:`solenoid_fmu.fmu_c`).
+
 ``simulate_recording(fmu, recording)`` drives an FMU with fmpy from a recording's measured inputs
 and returns a recording in the same format (CLI ``solenoid-fmu simulate``).
 """
@@ -447,10 +451,28 @@ def _build_python(maps_dir: Path, dest: Path, tables: _model.MapTables) -> str:
     return f"solenoid-fmu {__version__} (python backend: pythonfmu {pythonfmu.__version__})"
 
 
+def _build_c(maps_dir: Path, dest: Path, tables: _model.MapTables) -> str:
+    """Write the native FMU (generated C, compiled here; see :mod:`solenoid_fmu.fmu_c`) to ``dest``."""
+    from . import fmu_c
+
+    return fmu_c.build_c_fmu(maps_dir, dest, tables)
+
+
+def _finish_c(fmu_path: Path, tables: _model.MapTables) -> None:
+    from . import fmu_c
+
+    fmu_c.finish_model_description(fmu_path, tables)
+
+
 #: Export backends: name -> function(maps_dir, dest_fmu, tables) -> generationTool string.
 #: A backend writes an FMU with the interface of :data:`VARIABLES`; :func:`build_fmu` then
-#: rewrites its modelDescription.xml with :func:`finalize_model_description` and validates it.
-BACKENDS = {"python": _build_python}
+#: rewrites its modelDescription.xml with :func:`finalize_model_description`, applies the
+#: backend's entry in :data:`_FINISHERS` (if any) and validates it. ``python``: pythonfmu
+#: (co-simulation; needs Python with numpy where it runs); ``c``: native C, co-simulation and
+#: model exchange (:mod:`solenoid_fmu.fmu_c`).
+BACKENDS = {"python": _build_python, "c": _build_c}
+#: Backend name -> function(fmu_path, tables) run after :func:`finalize_model_description`.
+_FINISHERS = {"c": _finish_c}
 
 
 def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", model_name: str | None = None,
@@ -464,7 +486,8 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", model_name: str | 
     dest_fmu : str or path-like
         FMU file to write (parent directories are created; an existing file is replaced).
     backend : str
-        Key of :data:`BACKENDS` (``"python"``: pythonfmu; the FMU needs Python with numpy).
+        Key of :data:`BACKENDS`: ``"python"`` (pythonfmu co-simulation; the FMU needs Python with
+        numpy) or ``"c"`` (native binary from generated C, co-simulation and model exchange).
     model_name : str, optional
         ``modelName`` in the model description; default ``"solenoid <maps name>"``.
     validate : bool
@@ -497,6 +520,8 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", model_name: str | 
         tool = BACKENDS[backend](maps_dir, tmp, tables)
         finalize_model_description(tmp, tables=tables, maps_dir=maps_dir, generation_tool=tool,
                                     model_name=model_name)
+        if backend in _FINISHERS:
+            _FINISHERS[backend](tmp, tables)
         if validate:
             from fmpy.validation import validate_fmu
 
@@ -984,7 +1009,9 @@ def add_cli(subparsers) -> None:
     p.add_argument("maps_dir", type=Path, help="maps directory with maps.npz and maps.json")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="FMU", help="FMU file to write")
     p.add_argument("--backend", choices=sorted(BACKENDS), default="python",
-                   help="python: pythonfmu (the FMU needs Python 3 with numpy where it runs)")
+                   help="python: pythonfmu (the FMU needs Python 3 with numpy where it runs); c: native "
+                        "FMU from generated C (co-simulation and model exchange, no Python at run time, "
+                        "compiled with the machine's gcc/cc, sources/ inside)")
     p.add_argument("--name", help="modelName written into the FMU (default: 'solenoid <maps name>')")
     p.set_defaults(func=_cmd_export)
 

@@ -1,0 +1,1023 @@
+/*
+ * solenoid-fmu native FMU: FMI 2.0 co-simulation and model exchange in one binary.
+ *
+ * The real-time lumped solenoid model of solenoid_fmu/model.py (paper eqs. 1-3, SI units):
+ *
+ *     U = R i + dPsi/dt                               paper eq. (1)
+ *     i = i_f(Psi, x) + G dPsi/dt                     paper eq. (2), G = G_eddy [S]
+ *     F = F(Psi, x)                                   paper eq. (3)
+ *
+ * This file reproduces model.py step for step (same lookups, same ROS2 sub-steps, same Newton
+ * iteration, same arithmetic order), so that the co-simulation outputs agree with model.py to
+ * rounding. It is written in C99 without allocation outside fmi2Instantiate / fmi2GetFMUstate /
+ * fmi2DeSerializeFMUstate (all through the importer's allocateMemory callback); the maps are the
+ * constant arrays of the generated header solenoid_maps.h (cell cubics of model.MapTables.tables(),
+ * never recomputed here). Compile: cc -std=c99 -O2 -shared -fPIC -ffp-contract=off solenoid_fmu.c -lm
+ *
+ * Model exchange: one continuous state psi_state_Wb (vr 15) with derivative der(psi_state_Wb)
+ * (vr 16). Voltage mode: dPsi/dt = (U - R i_f) / (1 + R G). Current mode, G > 0:
+ * dPsi/dt = (i - i_f) / G. Current mode with G = 0 is algebraic (i_f(Psi, x) = i): the state is
+ * then frozen (derivative 0) and Psi is solved from the input at every evaluation by the same
+ * safeguarded Newton iteration as co-simulation; dpsi_dt_V and i_eddy_A are 0 and U_out_V = R i
+ * (an FMU gets no di/dt in model exchange). |Psi| at psi_max: the derivative is held at 0 while it
+ * points outwards (the state does not wind up), as in co-simulation.
+ *
+ * Extension point: effects that add states (hysteresis, heating, eddy ladder, friction) append
+ * entries to the state vector (enum ST_* below, mirroring model.STATE_NAMES and STATE_LAYOUT),
+ * parameters to the Core struct and the VR_* table, and their update to sol_step(); the FMU state
+ * (get/set/serialize) copies Core as a whole, so it follows automatically.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+#include "solenoid_maps.h"
+
+/* ---- model.py constants ------------------------------------------------------------------- */
+#define ROS2_GAMMA (1.0 + 1.0 / sqrt(2.0))
+#define NEWTON_MAX_ITER 60
+#define NEWTON_TOL_REL 1e-12
+#define DRIVE_VOLTAGE 1
+#define DRIVE_CURRENT 2
+/* Bound of the work of one fmi2DoStep: ceil(h / h_sub_max_s) sub-steps at most (else fmi2Error). */
+#define MAX_SUBSTEPS 10000000.0
+
+/* The state vector of model.py (STATE_NAMES, STATE_LAYOUT = 1). */
+#define STATE_LAYOUT 1.0
+enum {
+    ST_LAYOUT, ST_TIME, ST_PSI, ST_INIT, ST_EXC_PSI, ST_EXC_X, ST_EXC_EXT,
+    ST_I, ST_U, ST_F, ST_DPSI, ST_IEDDY,
+    /* new effects append their states here */
+    N_STATE
+};
+
+/* Value references (= positions in solenoid_fmu.fmu.VARIABLES, then the model-exchange locals). */
+enum {
+    VR_U = 0, VR_I, VR_X, VR_I_OUT, VR_U_OUT, VR_F, VR_PSI, VR_DPSI, VR_IEDDY, VR_OOM,
+    VR_R, VR_G, VR_DRIVE, VR_PSI0, VR_HSUB, VR_PSI_STATE, VR_DER_PSI_STATE,
+    N_VR
+};
+
+enum { PH_INSTANTIATED, PH_INIT, PH_STEP, PH_EVENT, PH_CONT, PH_TERMINATED };
+
+/* Everything that makes up the FMU state (copied whole by fmi2GetFMUstate; plain data only). */
+typedef struct {
+    double u_V, i_A, x_m;                       /* inputs as set */
+    double R_set, G_set, Psi0_set, hsub_set;    /* parameters as set */
+    int drive_set;
+    int voltage;                                /* parameters in use (model.py _fast) */
+    double R, G, m, c, inv_hsub, Psi0, hsub;
+    double t0_s;
+    int dirty, ready;
+    double s[N_STATE];                          /* model.py's state vector */
+    double me_time_s, me_psi_Wb;                /* model exchange: time and continuous state */
+} Core;
+
+typedef struct {
+    Core core;
+    fmi2CallbackFunctions cb;
+    char *name;
+    int logging_on;
+    int type;   /* fmi2ModelExchange or fmi2CoSimulation */
+    int phase;
+} Inst;
+
+#define SERIAL_MAGIC "SOLFMUS1"
+
+/* ---- logging ------------------------------------------------------------------------------ */
+#if defined(__GNUC__)
+__attribute__((format(printf, 3, 4)))
+#endif
+static void say(Inst *in, fmi2Status st, const char *fmt, ...)
+{
+    char buf[600];
+    va_list ap;
+    const char *cat;
+    if (in == NULL || in->cb.logger == NULL) return;
+    if (st < fmi2Error && !in->logging_on) return;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    cat = st == fmi2Warning ? "logStatusWarning" : st == fmi2Discard ? "logStatusDiscard"
+        : st == fmi2Error ? "logStatusError" : st == fmi2Fatal ? "logStatusFatal" : "logAll";
+    in->cb.logger(in->cb.componentEnvironment, in->name, st, cat, "%s", buf);
+}
+
+static int is_finite(double v) { return v - v == 0.0; }   /* false for NaN and +-inf */
+
+/* ---- map lookup (model.py MapTables.x_cell, _eval, _cubic) --------------------------------- */
+static void x_cell(double x, int *j, double *w, int *clamped)
+{
+    int lo, hi;
+    if (x <= SOL_X[0]) { *j = 0; *w = 0.0; *clamped = x < SOL_X[0]; return; }
+    if (x >= SOL_X[SOL_N_X - 1]) { *j = SOL_N_X - 2; *w = 1.0; *clamped = x > SOL_X[SOL_N_X - 1]; return; }
+    lo = 0;
+    hi = SOL_N_X - 1;       /* SOL_X[lo] <= x < SOL_X[hi] */
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (SOL_X[mid] <= x) lo = mid; else hi = mid;
+    }
+    if (lo > SOL_N_X - 2) lo = SOL_N_X - 2;
+    *j = lo;
+    *w = (x - SOL_X[lo]) * SOL_INV_DX[lo];
+    *clamped = 0;
+}
+
+/* Cell index and position t for |Psi| = a (clamped to psi_max). */
+static int psi_cell(double a, double *t)
+{
+    double sc;
+    int k;
+    if (a > SOL_PSI_MAX) a = SOL_PSI_MAX;
+    sc = a * SOL_INV_DPSI;
+    k = (int)sc;
+    if (k > SOL_N_PSI - 2) k = SOL_N_PSI - 2;
+    *t = sc - k;
+    return k;
+}
+
+/* i_f [A], d i_f / d Psi [A/Wb] and F [N] at (psi, x cell (j, w)); model.py _eval. */
+static void eval3(double psi, int j, double w, double *v, double *d, double *f)
+{
+    double t, c1, c2, c3, val;
+    int k = psi_cell(psi < 0.0 ? -psi : psi, &t);
+    const double *q = SOL_CI[k * (SOL_N_X - 1) + j];
+    const double *r = SOL_CF[k * (SOL_N_X - 1) + j];
+    c1 = q[1] + w * q[5];
+    c2 = q[2] + w * q[6];
+    c3 = q[3] + w * q[7];
+    val = (q[0] + w * q[4]) + t * (c1 + t * (c2 + t * c3));
+    *d = (c1 + t * (2.0 * c2 + 3.0 * t * c3)) * SOL_INV_DPSI;
+    *f = (r[0] + w * r[4]) + t * ((r[1] + w * r[5]) + t * ((r[2] + w * r[6]) + t * (r[3] + w * r[7])));
+    *v = psi < 0.0 ? -val : val;
+}
+
+/* i_f and its slope for Psi >= 0 (model.py MapTables._cubic on CI). */
+static void if_slope(double a, int j, double w, double *v, double *d)
+{
+    double t, c0, c1, c2, c3;
+    int k = psi_cell(a, &t);
+    const double *q = SOL_CI[k * (SOL_N_X - 1) + j];
+    c0 = q[0] + w * q[4];
+    c1 = q[1] + w * q[5];
+    c2 = q[2] + w * q[6];
+    c3 = q[3] + w * q[7];
+    *v = c0 + t * (c1 + t * (c2 + t * c3));
+    *d = (c1 + t * (2.0 * c2 + 3.0 * t * c3)) * SOL_INV_DPSI;
+}
+
+/* i_f value only (stage 2 of ROS2), same arithmetic as eval3's value. */
+static double if_value(double p, int j, double w)
+{
+    double t, v;
+    int k = psi_cell(p < 0.0 ? -p : p, &t);
+    const double *q = SOL_CI[k * (SOL_N_X - 1) + j];
+    v = (q[0] + w * q[4]) + t * ((q[1] + w * q[5]) + t * ((q[2] + w * q[6]) + t * (q[3] + w * q[7])));
+    return p < 0.0 ? -v : v;
+}
+
+/* Solve i_f(Psi, x) = i_A (safeguarded Newton, model.py _solve_psi); returns Psi, sets *clamped. */
+static double solve_psi(double i_A, int j, double w, double psi_guess, int *clamped)
+{
+    double target, sign, hi, lo, y, tol, v, d, g, g_hi;
+    int it;
+    *clamped = 0;
+    if (i_A == 0.0) return 0.0;
+    target = fabs(i_A);
+    sign = i_A < 0.0 ? -1.0 : 1.0;
+    hi = SOL_PSI_MAX;
+    if_slope(hi, j, w, &v, &d);
+    g_hi = v - target;
+    if (g_hi <= 0.0) { *clamped = g_hi < 0.0; return sign * hi; }
+    lo = 0.0;
+    y = fabs(psi_guess);
+    if (!(lo < y && y < hi)) y = 0.5 * hi;
+    tol = NEWTON_TOL_REL * hi;
+    for (it = 0; it < NEWTON_MAX_ITER; it++) {
+        double y_new, step;
+        if_slope(y, j, w, &v, &d);
+        g = v - target;
+        if (g == 0.0) break;
+        if (g < 0.0) lo = y; else hi = y;
+        y_new = d > 0.0 ? y - g / d : 0.5 * (lo + hi);
+        if (!(lo < y_new && y_new < hi)) y_new = 0.5 * (lo + hi);
+        step = fabs(y_new - y);
+        y = y_new;
+        if (step <= tol) break;
+    }
+    return sign * y;
+}
+
+/* n ROS2 sub-steps of hs for m dPsi/dt = b - c i_f(Psi, x) (model.py _ros2). */
+static double ros2(double psi, double v, double d, double m, double b, double c, double hs, long n,
+                   int j, double w, int *clamped)
+{
+    const double g = ROS2_GAMMA, pm = SOL_PSI_MAX;
+    long sub;
+    *clamped = 0;
+    for (sub = 0; sub < n; sub++) {
+        double W, k1, k2, p2, v2;
+        if (sub) {
+            double f;
+            eval3(psi, j, w, &v, &d, &f);
+        }
+        W = m + g * hs * c * d;
+        k1 = (b - c * v) / W;
+        p2 = psi + hs * k1;
+        v2 = if_value(p2, j, w);
+        k2 = (b - c * v2 - 2.0 * m * k1) / W;
+        psi = psi + 1.5 * hs * k1 + 0.5 * hs * k2;
+        if (psi > pm) { psi = pm; *clamped = 1; }
+        else if (psi < -pm) { psi = -pm; *clamped = 1; }
+    }
+    return psi;
+}
+
+/* ---- excursion flags and their messages (model.py _finish / _set_flag) --------------------- */
+static void set_flag(Inst *in, double *s, int k, int on, double i_f, double x_m, double t_s)
+{
+    if (on && s[k] == 0.0) {
+        if (k == ST_EXC_X)
+            say(in, fmi2Warning, "t = %.9g s: x_m = %.6g m is outside the map's gap range [%.6g, %.6g] m; the "
+                "lookups use the nearest edge until x returns into the range", t_s, x_m, SOL_X[0],
+                SOL_X[SOL_N_X - 1]);
+        else if (k == ST_EXC_PSI)
+            say(in, fmi2Warning, "t = %.9g s: |Psi| reached the map limit psi_max = %.6g Wb (coil current "
+                "beyond the maps' range); Psi is held at the limit until the drive lets it return", t_s,
+                SOL_PSI_MAX);
+        else
+            say(in, fmi2Warning, "t = %.9g s: |i_f| = %.6g A is beyond the current range of the FEM sweep "
+                "(%.6g A); the map is linearly extrapolated there", t_s, fabs(i_f), SOL_I_FEM_MAX);
+    }
+    s[k] = on ? 1.0 : 0.0;
+}
+
+static void finish(Inst *in, double *s, int pc, double i_f, double x_m, int xc, double t_s)
+{
+    const double lim = SOL_I_FEM_MAX * (1.0 + 1e-9);
+    int ext = (!pc) && (i_f > lim || -i_f > lim);
+    if (xc != (s[ST_EXC_X] != 0.0)) set_flag(in, s, ST_EXC_X, xc, i_f, x_m, t_s);
+    if (pc != (s[ST_EXC_PSI] != 0.0)) set_flag(in, s, ST_EXC_PSI, pc, i_f, x_m, t_s);
+    if (ext != (s[ST_EXC_EXT] != 0.0)) set_flag(in, s, ST_EXC_EXT, ext, i_f, x_m, t_s);
+}
+
+/* ---- parameters ----------------------------------------------------------------------------- */
+/* Validate and apply the parameters as set (all, or only the tunable R and G); 0 on error. */
+static int apply_params(Inst *in, int all)
+{
+    Core *c = &in->core;
+    double R = c->R_set, G = c->G_set;
+    int drive = all ? c->drive_set : (c->voltage ? DRIVE_VOLTAGE : DRIVE_CURRENT);
+    if (!is_finite(R)) { say(in, fmi2Error, "R_ohm must be finite, got %.17g", R); return 0; }
+    if (R <= 0.0) { say(in, fmi2Error, "R_ohm must be > 0 ohm, got %.17g", R); return 0; }
+    if (!is_finite(G)) { say(in, fmi2Error, "G_eddy_S must be finite, got %.17g", G); return 0; }
+    if (G < 0.0) { say(in, fmi2Error, "G_eddy_S must be >= 0 S, got %.17g", G); return 0; }
+    if (all) {
+        if (drive != DRIVE_VOLTAGE && drive != DRIVE_CURRENT) {
+            say(in, fmi2Error, "drive_mode must be 1 (voltage) or 2 (current), got %d", drive);
+            return 0;
+        }
+        if (!is_finite(c->Psi0_set)) { say(in, fmi2Error, "Psi0_Wb must be finite, got %.17g", c->Psi0_set); return 0; }
+        if (!is_finite(c->hsub_set) || c->hsub_set <= 0.0) {
+            say(in, fmi2Error, "h_sub_max_s must be finite and > 0 s, got %.17g", c->hsub_set);
+            return 0;
+        }
+        c->Psi0 = c->Psi0_set;
+        c->hsub = c->hsub_set;
+        c->inv_hsub = 1.0 / c->hsub;
+    }
+    c->voltage = drive == DRIVE_VOLTAGE;
+    c->R = R;
+    c->G = G;
+    c->m = c->voltage ? 1.0 + R * G : G;
+    c->c = c->voltage ? R : 1.0;
+    c->dirty = 0;
+    return 1;
+}
+
+static const char *drive_name(const Core *c) { return c->voltage ? "U_V" : "i_A"; }
+
+/* model.py SolenoidModel.initialize: start state at t0 and the outputs there; 0 on error. */
+static int initialize(Inst *in)
+{
+    Core *c = &in->core;
+    double s[N_STATE], u, psi, i_f, dsl, force, dpsi, R, G;
+    int j, xc, pc;
+    double w;
+    c->ready = 0;
+    c->dirty = 1;
+    if (!apply_params(in, 1)) return 0;
+    c->dirty = 1;
+    u = c->voltage ? c->u_V : c->i_A;
+    if (!is_finite(u)) { say(in, fmi2Error, "initialization: %s must be finite, got %.17g", drive_name(c), u); return 0; }
+    if (!is_finite(c->x_m)) { say(in, fmi2Error, "initialization: x_m must be finite, got %.17g", c->x_m); return 0; }
+    if (!is_finite(c->t0_s)) { say(in, fmi2Error, "initialization: t0_s must be finite, got %.17g", c->t0_s); return 0; }
+    R = c->R;
+    G = c->G;
+    memset(s, 0, sizeof s);
+    s[ST_LAYOUT] = STATE_LAYOUT;
+    x_cell(c->x_m, &j, &w, &xc);
+    if (!c->voltage && G == 0.0) {
+        psi = solve_psi(u, j, w, 0.0, &pc);
+    } else {
+        psi = c->Psi0;
+        pc = fabs(psi) > SOL_PSI_MAX;
+        if (pc) psi = copysign(SOL_PSI_MAX, psi);
+    }
+    eval3(psi, j, w, &i_f, &dsl, &force);
+    if (c->voltage) {
+        dpsi = (u - R * i_f) / (1.0 + R * G);
+        s[ST_I] = i_f + G * dpsi;
+        s[ST_U] = u;
+    } else {
+        dpsi = G > 0.0 ? (u - i_f) / G : 0.0;
+        s[ST_I] = u;
+        s[ST_U] = R * u + dpsi;
+    }
+    s[ST_TIME] = c->t0_s;
+    s[ST_PSI] = psi;
+    s[ST_INIT] = 1.0;
+    s[ST_F] = force;
+    s[ST_DPSI] = dpsi;
+    s[ST_IEDDY] = G * dpsi;
+    finish(in, s, pc, i_f, c->x_m, xc, c->t0_s);
+    memcpy(c->s, s, sizeof s);
+    c->me_time_s = c->t0_s;
+    c->me_psi_Wb = psi;
+    c->ready = 1;
+    c->dirty = 0;
+    return 1;
+}
+
+/* model.py SolenoidModel.step: one communication step of h with inputs held. Inputs checked. */
+static void sol_step(Inst *in, double t_s, double h)
+{
+    Core *c = &in->core;
+    double *s = c->s;
+    const double u = c->voltage ? c->u_V : c->i_A, x = c->x_m, m = c->m, R = c->R, G = c->G;
+    double psi0 = s[ST_PSI], psi, i_f, d_end, force, dpsi, w;
+    int j, xc, pc;
+    x_cell(x, &j, &w, &xc);
+    if (m == 0.0) {
+        psi = solve_psi(u, j, w, psi0, &pc);
+    } else {
+        double v0, d0, f0, nd = ceil(h * c->inv_hsub - 1e-9);
+        long n = nd < 1.0 ? 1 : (long)nd;
+        eval3(psi0, j, w, &v0, &d0, &f0);
+        psi = ros2(psi0, v0, d0, m, u, c->c, h / (double)n, n, j, w, &pc);
+    }
+    eval3(psi, j, w, &i_f, &d_end, &force);
+    if (c->voltage) {
+        dpsi = (u - R * i_f) / m;
+        s[ST_I] = i_f + G * dpsi;
+        s[ST_U] = u;
+    } else {
+        dpsi = (psi - psi0) / h;
+        s[ST_I] = u;
+        s[ST_U] = R * u + dpsi;
+    }
+    s[ST_TIME] = t_s + h;
+    s[ST_PSI] = psi;
+    s[ST_F] = force;
+    s[ST_DPSI] = dpsi;
+    s[ST_IEDDY] = G * dpsi;
+    finish(in, s, pc, i_f, x, xc, t_s + h);
+}
+
+/* ---- model exchange evaluation ------------------------------------------------------------- */
+typedef struct { double i, U, F, psi, dpsi, ieddy, der; int pc, xc; double i_f; } MeOut;
+
+static void me_eval(const Core *c, MeOut *o)
+{
+    const double u = c->voltage ? c->u_V : c->i_A, R = c->R, G = c->G, pm = SOL_PSI_MAX;
+    double psi = c->me_psi_Wb, i_f, d, f, w;
+    int j;
+    x_cell(c->x_m, &j, &w, &o->xc);
+    if (!c->voltage && G == 0.0) {
+        psi = solve_psi(u, j, w, 0.0, &o->pc);
+        eval3(psi, j, w, &i_f, &d, &f);
+        o->dpsi = 0.0;
+        o->der = 0.0;
+        o->i = u;
+        o->U = R * u;
+    } else {
+        o->pc = fabs(psi) >= pm;
+        if (psi > pm) psi = pm;
+        else if (psi < -pm) psi = -pm;
+        eval3(psi, j, w, &i_f, &d, &f);
+        if (c->voltage) {
+            o->dpsi = (u - R * i_f) / c->m;
+            o->i = i_f + G * o->dpsi;
+            o->U = u;
+        } else {
+            o->dpsi = (u - i_f) / G;
+            o->i = u;
+            o->U = R * u + o->dpsi;
+        }
+        o->der = o->dpsi;
+        if (o->pc && ((psi > 0.0 && o->der > 0.0) || (psi < 0.0 && o->der < 0.0))) o->der = 0.0;
+    }
+    o->psi = psi;
+    o->F = f;
+    o->ieddy = G * o->dpsi;
+    o->i_f = i_f;
+}
+
+static int me_mode(const Inst *in)
+{
+    return in->type == fmi2ModelExchange && (in->phase == PH_EVENT || in->phase == PH_CONT)
+        && in->core.ready;
+}
+
+/* Check the inputs and apply changed tunable parameters before a model-exchange evaluation. */
+static fmi2Status me_prepare(Inst *in, const char *where)
+{
+    Core *c = &in->core;
+    double u = c->voltage ? c->u_V : c->i_A;
+    if (!is_finite(u)) { say(in, fmi2Error, "%s at t = %.17g s: input %s = %.17g is not finite", where, c->me_time_s, drive_name(c), u); return fmi2Error; }
+    if (!is_finite(c->x_m)) { say(in, fmi2Error, "%s at t = %.17g s: input x_m = %.17g is not finite", where, c->me_time_s, c->x_m); return fmi2Error; }
+    if (c->dirty && !apply_params(in, 0)) return fmi2Error;
+    return fmi2OK;
+}
+
+/* Update the excursion flags at an accepted model-exchange point (logs once per excursion). */
+static void me_flags(Inst *in)
+{
+    MeOut o;
+    me_eval(&in->core, &o);
+    finish(in, in->core.s, o.pc, o.i_f, in->core.x_m, o.xc, in->core.me_time_s);
+}
+
+/* ---- instance life cycle -------------------------------------------------------------------- */
+static void reset_core(Core *c)
+{
+    memset(c, 0, sizeof *c);
+    c->u_V = 0.0;
+    c->i_A = 0.0;
+    c->x_m = SOL_X_START;
+    c->R_set = SOL_R_DEFAULT;
+    c->G_set = SOL_G_DEFAULT;
+    c->Psi0_set = SOL_PSI0_DEFAULT;
+    c->hsub_set = SOL_HSUB_DEFAULT;
+    c->drive_set = SOL_DRIVE_DEFAULT;
+    c->voltage = SOL_DRIVE_DEFAULT == DRIVE_VOLTAGE;
+    c->R = SOL_R_DEFAULT;
+    c->G = SOL_G_DEFAULT;
+    c->m = c->voltage ? 1.0 + c->R * c->G : c->G;
+    c->c = c->voltage ? c->R : 1.0;
+    c->hsub = SOL_HSUB_DEFAULT;
+    c->inv_hsub = 1.0 / SOL_HSUB_DEFAULT;
+    c->dirty = 1;
+    c->ready = 0;
+    c->s[ST_LAYOUT] = STATE_LAYOUT;
+}
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    Inst *in;
+    size_t len;
+    (void)fmuResourceLocation;
+    (void)visible;
+    if (functions == NULL || functions->allocateMemory == NULL || functions->freeMemory == NULL) return NULL;
+    if (fmuGUID == NULL || strcmp(fmuGUID, SOL_GUID) != 0) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "GUID %s does not match this FMU's %s", fmuGUID ? fmuGUID : "(null)", SOL_GUID);
+        return NULL;
+    }
+    if (fmuType != fmi2ModelExchange && fmuType != fmi2CoSimulation) return NULL;
+    in = (Inst *)functions->allocateMemory(1, sizeof(Inst));
+    if (in == NULL) return NULL;
+    len = instanceName ? strlen(instanceName) : 0;
+    in->name = (char *)functions->allocateMemory(len + 1, 1);
+    if (in->name == NULL) { functions->freeMemory(in); return NULL; }
+    if (len) memcpy(in->name, instanceName, len);
+    in->name[len] = '\0';
+    in->cb = *functions;
+    in->logging_on = loggingOn ? 1 : 0;
+    in->type = fmuType;
+    in->phase = PH_INSTANTIATED;
+    reset_core(&in->core);
+    return in;
+}
+
+void fmi2FreeInstance(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    fmi2CallbackFreeMemory fr;
+    if (in == NULL) return;
+    fr = in->cb.freeMemory;
+    fr(in->name);
+    fr(in);
+}
+
+fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[])
+{
+    Inst *in = (Inst *)comp;
+    (void)nCategories;
+    (void)categories;
+    if (in == NULL) return fmi2Error;
+    in->logging_on = loggingOn ? 1 : 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    Inst *in = (Inst *)comp;
+    (void)toleranceDefined;
+    (void)tolerance;
+    (void)stopTimeDefined;
+    (void)stopTime;
+    if (in == NULL) return fmi2Error;
+    if (in->phase != PH_INSTANTIATED) { say(in, fmi2Error, "fmi2SetupExperiment only after fmi2Instantiate"); return fmi2Error; }
+    in->core.t0_s = startTime;
+    in->core.me_time_s = startTime;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    if (in->phase != PH_INSTANTIATED) { say(in, fmi2Error, "fmi2EnterInitializationMode only after fmi2Instantiate"); return fmi2Error; }
+    in->phase = PH_INIT;
+    return fmi2OK;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    if (in->phase != PH_INIT) { say(in, fmi2Error, "fmi2ExitInitializationMode outside initialization mode"); return fmi2Error; }
+    in->phase = in->type == fmi2CoSimulation ? PH_STEP : PH_EVENT;
+    return initialize(in) ? fmi2OK : fmi2Error;
+}
+
+fmi2Status fmi2Terminate(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    in->phase = PH_TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    reset_core(&in->core);
+    in->phase = PH_INSTANTIATED;
+    return fmi2OK;
+}
+
+/* ---- variable access -------------------------------------------------------------------- */
+static int is_fixed_phase(const Inst *in) { return in->phase == PH_INSTANTIATED || in->phase == PH_INIT; }
+
+fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+{
+    Inst *in = (Inst *)comp;
+    Core *c;
+    MeOut o;
+    size_t k;
+    int me;
+    if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
+    c = &in->core;
+    me = me_mode(in);
+    if (me) {
+        if (me_prepare(in, "fmi2GetReal") != fmi2OK) return fmi2Error;
+        me_eval(c, &o);
+    }
+    for (k = 0; k < nvr; k++) {
+        switch (vr[k]) {
+        case VR_U: value[k] = c->u_V; break;
+        case VR_I: value[k] = c->i_A; break;
+        case VR_X: value[k] = c->x_m; break;
+        case VR_I_OUT: value[k] = me ? o.i : c->s[ST_I]; break;
+        case VR_U_OUT: value[k] = me ? o.U : c->s[ST_U]; break;
+        case VR_F: value[k] = me ? o.F : c->s[ST_F]; break;
+        case VR_PSI: value[k] = me ? o.psi : c->s[ST_PSI]; break;
+        case VR_DPSI: value[k] = me ? o.dpsi : c->s[ST_DPSI]; break;
+        case VR_IEDDY: value[k] = me ? o.ieddy : c->s[ST_IEDDY]; break;
+        case VR_R: value[k] = c->R_set; break;
+        case VR_G: value[k] = c->G_set; break;
+        case VR_PSI0: value[k] = c->Psi0_set; break;
+        case VR_HSUB: value[k] = c->hsub_set; break;
+        case VR_PSI_STATE: value[k] = me ? c->me_psi_Wb : c->s[ST_PSI]; break;
+        case VR_DER_PSI_STATE: value[k] = me ? o.der : c->s[ST_DPSI]; break;
+        default:
+            say(in, fmi2Error, "fmi2GetReal: no Real variable with value reference %u", (unsigned)vr[k]);
+            return fmi2Error;
+        }
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
+{
+    Inst *in = (Inst *)comp;
+    size_t k;
+    if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_DRIVE) {
+            say(in, fmi2Error, "fmi2GetInteger: no Integer/Enumeration variable with value reference %u",
+                (unsigned)vr[k]);
+            return fmi2Error;
+        }
+        value[k] = in->core.drive_set;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
+{
+    Inst *in = (Inst *)comp;
+    size_t k;
+    if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_OOM) {
+            say(in, fmi2Error, "fmi2GetBoolean: no Boolean variable with value reference %u", (unsigned)vr[k]);
+            return fmi2Error;
+        }
+        value[k] = (in->core.s[ST_EXC_PSI] != 0.0 || in->core.s[ST_EXC_X] != 0.0) ? fmi2True : fmi2False;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
+{
+    Inst *in = (Inst *)comp;
+    (void)vr;
+    (void)value;
+    if (in == NULL) return fmi2Error;
+    if (nvr) { say(in, fmi2Error, "fmi2GetString: this FMU has no String variables"); return fmi2Error; }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+{
+    Inst *in = (Inst *)comp;
+    Core *c;
+    size_t k;
+    if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
+    c = &in->core;
+    for (k = 0; k < nvr; k++) {
+        double v = value[k];
+        switch (vr[k]) {
+        case VR_U: c->u_V = v; break;
+        case VR_I: c->i_A = v; break;
+        case VR_X: c->x_m = v; break;
+        case VR_R: c->R_set = v; c->dirty = 1; break;
+        case VR_G: c->G_set = v; c->dirty = 1; break;
+        case VR_PSI0:
+        case VR_HSUB:
+            if (!is_fixed_phase(in)) {
+                say(in, fmi2Error, "fmi2SetReal: %s is a fixed parameter; set it before fmi2ExitInitializationMode",
+                    vr[k] == VR_PSI0 ? "Psi0_Wb" : "h_sub_max_s");
+                return fmi2Error;
+            }
+            if (vr[k] == VR_PSI0) c->Psi0_set = v; else c->hsub_set = v;
+            c->dirty = 1;
+            break;
+        default:
+            say(in, fmi2Error, "fmi2SetReal: value reference %u is not a Real input or parameter", (unsigned)vr[k]);
+            return fmi2Error;
+        }
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
+{
+    Inst *in = (Inst *)comp;
+    size_t k;
+    if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_DRIVE) {
+            say(in, fmi2Error, "fmi2SetInteger: value reference %u is not an Integer/Enumeration parameter",
+                (unsigned)vr[k]);
+            return fmi2Error;
+        }
+        if (!is_fixed_phase(in)) {
+            say(in, fmi2Error, "fmi2SetInteger: drive_mode is fixed; set it before fmi2ExitInitializationMode");
+            return fmi2Error;
+        }
+        if (value[k] != DRIVE_VOLTAGE && value[k] != DRIVE_CURRENT) {
+            say(in, fmi2Error, "drive_mode must be 1 (voltage) or 2 (current), got %d", (int)value[k]);
+            return fmi2Error;
+        }
+        in->core.drive_set = value[k];
+        in->core.dirty = 1;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
+{
+    Inst *in = (Inst *)comp;
+    (void)vr;
+    (void)value;
+    if (in == NULL) return fmi2Error;
+    if (nvr) { say(in, fmi2Error, "fmi2SetBoolean: this FMU has no Boolean inputs or parameters"); return fmi2Error; }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
+{
+    Inst *in = (Inst *)comp;
+    (void)vr;
+    (void)value;
+    if (in == NULL) return fmi2Error;
+    if (nvr) { say(in, fmi2Error, "fmi2SetString: this FMU has no String variables"); return fmi2Error; }
+    return fmi2OK;
+}
+
+/* ---- FMU state ---------------------------------------------------------------------------- */
+fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL || state == NULL) return fmi2Error;
+    if (*state == NULL) {
+        *state = in->cb.allocateMemory(1, sizeof(Core));
+        if (*state == NULL) { say(in, fmi2Error, "fmi2GetFMUstate: out of memory"); return fmi2Error; }
+    }
+    memcpy(*state, &in->core, sizeof(Core));
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state)
+{
+    Inst *in = (Inst *)comp;
+    const Core *c = (const Core *)state;
+    if (in == NULL) return fmi2Error;
+    if (c == NULL || c->s[ST_LAYOUT] != STATE_LAYOUT) { say(in, fmi2Error, "fmi2SetFMUstate: not a state of this FMU"); return fmi2Error; }
+    memcpy(&in->core, c, sizeof(Core));
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *state)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL || state == NULL) return fmi2Error;
+    if (*state) in->cb.freeMemory(*state);
+    *state = NULL;
+    return fmi2OK;
+}
+
+#define SERIAL_HEADER 16   /* 8-byte magic, 4-byte layout, 4-byte payload size */
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate state, size_t *size)
+{
+    (void)comp;
+    (void)state;
+    if (size == NULL) return fmi2Error;
+    *size = SERIAL_HEADER + sizeof(Core);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byte serializedState[], size_t size)
+{
+    Inst *in = (Inst *)comp;
+    unsigned int head[2];
+    if (in == NULL || state == NULL || serializedState == NULL) return fmi2Error;
+    if (size < SERIAL_HEADER + sizeof(Core)) { say(in, fmi2Error, "fmi2SerializeFMUstate: buffer too small"); return fmi2Error; }
+    head[0] = (unsigned int)STATE_LAYOUT;
+    head[1] = (unsigned int)sizeof(Core);
+    memcpy(serializedState, SERIAL_MAGIC, 8);
+    memcpy(serializedState + 8, head, 8);
+    memcpy(serializedState + SERIAL_HEADER, state, sizeof(Core));
+    return fmi2OK;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *state)
+{
+    Inst *in = (Inst *)comp;
+    unsigned int head[2];
+    Core tmp;
+    if (in == NULL || state == NULL || serializedState == NULL) return fmi2Error;
+    if (size != SERIAL_HEADER + sizeof(Core) || memcmp(serializedState, SERIAL_MAGIC, 8) != 0) {
+        say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a serialized state of this FMU (%lu bytes)", (unsigned long)size);
+        return fmi2Error;
+    }
+    memcpy(head, serializedState + 8, 8);
+    memcpy(&tmp, serializedState + SERIAL_HEADER, sizeof(Core));
+    if (head[0] != (unsigned int)STATE_LAYOUT || head[1] != sizeof(Core) || tmp.s[ST_LAYOUT] != STATE_LAYOUT
+        || !is_finite(tmp.s[ST_TIME]) || !is_finite(tmp.s[ST_PSI])) {
+        say(in, fmi2Error, "fmi2DeSerializeFMUstate: state layout %u does not match this FMU's %u", head[0],
+            (unsigned int)STATE_LAYOUT);
+        return fmi2Error;
+    }
+    if (*state == NULL) {
+        *state = in->cb.allocateMemory(1, sizeof(Core));
+        if (*state == NULL) { say(in, fmi2Error, "fmi2DeSerializeFMUstate: out of memory"); return fmi2Error; }
+    }
+    memcpy(*state, &tmp, sizeof(Core));
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
+    say((Inst *)comp, fmi2Error, "fmi2GetDirectionalDerivative is not provided");
+    return fmi2Error;
+}
+
+/* ---- co-simulation ------------------------------------------------------------------------ */
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[])
+{
+    (void)vr; (void)nvr; (void)order; (void)value;
+    say((Inst *)comp, fmi2Error, "fmi2SetRealInputDerivatives: inputs are held (canInterpolateInputs=false)");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[])
+{
+    (void)vr; (void)nvr; (void)order; (void)value;
+    say((Inst *)comp, fmi2Error, "fmi2GetRealOutputDerivatives: not provided (maxOutputDerivativeOrder=0)");
+    return fmi2Error;
+}
+
+fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    Inst *in = (Inst *)comp;
+    Core *c;
+    double u;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (in == NULL) return fmi2Error;
+    c = &in->core;
+    if (in->phase != PH_STEP) { say(in, fmi2Error, "fmi2DoStep outside step mode (after initialization)"); return fmi2Error; }
+    u = c->voltage ? c->u_V : c->i_A;
+    if (!(h > 0.0 && is_finite(h))) { say(in, fmi2Error, "doStep at t = %.17g s: communication step must be finite and > 0 s, got %.17g", t, h); return fmi2Error; }
+    if (!is_finite(t)) { say(in, fmi2Error, "doStep: step start time %.17g is not finite", t); return fmi2Error; }
+    if (c->ready && ceil(h * c->inv_hsub - 1e-9) > MAX_SUBSTEPS) {
+        say(in, fmi2Error, "doStep at t = %.17g s: step h = %.17g s needs more than %.0f sub-steps of h_sub_max_s "
+            "= %.17g s; take shorter communication steps or raise h_sub_max_s", t, h, MAX_SUBSTEPS, c->hsub);
+        return fmi2Error;
+    }
+    if (c->dirty) {
+        if (c->ready) {
+            if (!apply_params(in, 0)) return fmi2Error;
+        } else if (!initialize(in)) {
+            return fmi2Error;
+        }
+        u = c->voltage ? c->u_V : c->i_A;
+    }
+    if (!is_finite(u)) { say(in, fmi2Error, "doStep at t = %.17g s: input %s = %.17g is not finite", t, drive_name(c), u); return fmi2Error; }
+    if (!is_finite(c->x_m)) { say(in, fmi2Error, "doStep at t = %.17g s: input x_m = %.17g is not finite", t, c->x_m); return fmi2Error; }
+    sol_step(in, t, h);
+    return fmi2OK;
+}
+
+fmi2Status fmi2CancelStep(fmi2Component comp)
+{
+    say((Inst *)comp, fmi2Error, "fmi2CancelStep: fmi2DoStep is synchronous");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status *value)
+{
+    (void)s;
+    (void)value;
+    say((Inst *)comp, fmi2Discard, "fmi2GetStatus: fmi2DoStep is synchronous; no status to report");
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Real *value)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL || value == NULL) return fmi2Error;
+    if (s == fmi2LastSuccessfulTime) { *value = in->core.s[ST_TIME]; return fmi2OK; }
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Integer *value)
+{
+    (void)comp; (void)s; (void)value;
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    (void)comp; (void)s; (void)value;
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component comp, const fmi2StatusKind s, fmi2String *value)
+{
+    (void)comp; (void)s; (void)value;
+    return fmi2Discard;
+}
+
+/* ---- model exchange ----------------------------------------------------------------------- */
+fmi2Status fmi2EnterEventMode(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    if (in->phase != PH_CONT && in->phase != PH_EVENT) { say(in, fmi2Error, "fmi2EnterEventMode in wrong mode"); return fmi2Error; }
+    in->phase = PH_EVENT;
+    return fmi2OK;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component comp, fmi2EventInfo *info)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL || info == NULL) return fmi2Error;
+    if (in->phase != PH_EVENT) { say(in, fmi2Error, "fmi2NewDiscreteStates outside event mode"); return fmi2Error; }
+    if (me_prepare(in, "fmi2NewDiscreteStates") != fmi2OK) return fmi2Error;
+    me_flags(in);
+    info->newDiscreteStatesNeeded = fmi2False;
+    info->terminateSimulation = fmi2False;
+    info->nominalsOfContinuousStatesChanged = fmi2False;
+    info->valuesOfContinuousStatesChanged = fmi2False;
+    info->nextEventTimeDefined = fmi2False;
+    info->nextEventTime = 0.0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component comp)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    if (in->phase != PH_EVENT) { say(in, fmi2Error, "fmi2EnterContinuousTimeMode outside event mode"); return fmi2Error; }
+    in->phase = PH_CONT;
+    return fmi2OK;
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation)
+{
+    Inst *in = (Inst *)comp;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (in == NULL || enterEventMode == NULL || terminateSimulation == NULL) return fmi2Error;
+    *enterEventMode = fmi2False;
+    *terminateSimulation = fmi2False;
+    if (me_prepare(in, "fmi2CompletedIntegratorStep") != fmi2OK) return fmi2Error;
+    me_flags(in);
+    in->core.s[ST_TIME] = in->core.me_time_s;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetTime(fmi2Component comp, fmi2Real time)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL) return fmi2Error;
+    if (!is_finite(time)) { say(in, fmi2Error, "fmi2SetTime: time %.17g is not finite", time); return fmi2Error; }
+    in->core.me_time_s = time;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real x[], size_t nx)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL || x == NULL || nx != 1) return fmi2Error;
+    if (!is_finite(x[0])) { say(in, fmi2Error, "fmi2SetContinuousStates: psi_state_Wb = %.17g is not finite", x[0]); return fmi2Error; }
+    in->core.me_psi_Wb = x[0];
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real derivatives[], size_t nx)
+{
+    Inst *in = (Inst *)comp;
+    MeOut o;
+    if (in == NULL || derivatives == NULL || nx != 1) return fmi2Error;
+    if (!in->core.ready) { say(in, fmi2Error, "fmi2GetDerivatives before a successful initialization"); return fmi2Error; }
+    if (me_prepare(in, "fmi2GetDerivatives") != fmi2OK) return fmi2Error;
+    me_eval(&in->core, &o);
+    derivatives[0] = o.der;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component comp, fmi2Real eventIndicators[], size_t ni)
+{
+    (void)eventIndicators;
+    return comp != NULL && ni == 0 ? fmi2OK : fmi2Error;
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx)
+{
+    Inst *in = (Inst *)comp;
+    if (in == NULL || x == NULL || nx != 1) return fmi2Error;
+    x[0] = in->core.me_psi_Wb;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component comp, fmi2Real x_nominal[], size_t nx)
+{
+    if (comp == NULL || x_nominal == NULL || nx != 1) return fmi2Error;
+    x_nominal[0] = SOL_PSI_MAX;
+    return fmi2OK;
+}
