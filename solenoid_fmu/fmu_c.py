@@ -193,7 +193,7 @@ endif()
 def _check_model_version() -> None:
     """Refuse to generate C for a model.py whose states or parameters the C template lacks."""
     if (_model.STATE_LAYOUT != C_STATE_LAYOUT or tuple(_model.STATE_NAMES) != C_STATE_NAMES
-            or tuple(_model.DEFAULT_PARAMS) != C_PARAMS):
+            or tuple(_model.DEFAULT_PARAMS)[: len(C_PARAMS)] != C_PARAMS):
         raise FmuBuildError(
             f"the native backend implements model state layout {C_STATE_LAYOUT} ({len(C_STATE_NAMES)} states, "
             f"parameters {', '.join(C_PARAMS)}); solenoid_fmu/model.py has layout {_model.STATE_LAYOUT} "
@@ -202,7 +202,16 @@ def _check_model_version() -> None:
             "solenoid_fmu.fmu_c.C_STATE_NAMES / C_PARAMS, or export with --backend python")
 
 
+def _check_no_effects(tables: _model.MapTables) -> None:
+    """The effect sub-models (maps.json ``effects``, issue 7) are not in the C template yet."""
+    fx = [k for k, v in (tables.meta.get("effects") or {}).items() if v]
+    if fx:
+        raise FmuBuildError(f"{tables.where}: the maps carry effect sub-models ({', '.join(fx)}) that the native "
+                            "backend does not implement yet; export them with --backend python")
+
+
 def _default_params(tables: _model.MapTables) -> dict:
+    _check_no_effects(tables)
     try:
         return dict(_model.SolenoidModel(tables).params)
     except _model.ModelError as exc:
