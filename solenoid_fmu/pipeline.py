@@ -1,0 +1,281 @@
+"""The main job: from a campaign folder of recordings to a validated, improved FMU with one report.
+
+``solenoid-fmu pipeline fitting/NAME -o build/NAME`` runs, with progress on stderr:
+
+1. **recordings**: every ``*.csv`` under the folder whose first line is the recording format's
+   ``# recording:`` line (kinds from the headers; folders named ``truth`` are never entered, and
+   files that are not recordings are listed as skipped);
+2. **identify**: B(H) from the ``flux`` recordings (:mod:`solenoid_fmu.identify`) ->
+   ``material/material.csv`` (+ ``.bh``, ``.tab``) and ``identify/`` (figures, JSON);
+3. **maps**: FEM sweep with the identified steel -> ``maps/`` (:func:`solenoid_fmu.maps.build_maps`);
+4. **eddy**: the single eddy conductance from the ``eddy`` recordings, stored in ``maps/maps.json``;
+5. **export**: ``NAME.fmu`` (pythonfmu) and, when a C compiler is there, ``NAME-native.fmu``;
+6. **validate** and **diagnose** the FMU on every recording;
+7. **improve**: add the diagnosed effects -> ``NAME-improved.fmu`` (:mod:`solenoid_fmu.improve`);
+8. **report**: ``report.html`` (self-contained) and ``summary.json``.
+
+``summary.json`` holds ``material``, ``fmu``, ``improved_fmu`` (paths), ``effects_added`` (the
+words ``diagnose`` uses), ``errors`` (one row per recording and signal: RMS error ``before`` and
+``after`` improvement in the signal's SI unit, and the same normalized by the measured range),
+the diagnosis, the identification summary and the wall time of every step.
+
+Outputs are written to fresh files (atomic writes); a failing step stops the pipeline with its
+error and leaves the results of the steps before it in place.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from .errors import SolenoidError
+
+#: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests).
+PRESETS = {
+    "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
+    "quick": {"identify_mesh_size": 3.0, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
+}
+
+
+class PipelineError(SolenoidError):
+    """The campaign folder cannot be processed (no recordings, no flux recording, ...)."""
+
+
+def find_recordings(folder) -> tuple[list[Path], list[Path]]:
+    """Recording files under ``folder`` (sorted) and other CSV files skipped (never inside ``truth``)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise PipelineError(f"{folder}: campaign folder not found")
+    found, skipped = [], []
+    for path in sorted(folder.rglob("*.csv")):
+        rel = path.relative_to(folder)
+        if any(part == "truth" or part.startswith(".") for part in rel.parts[:-1]):
+            continue
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            first = fh.readline()
+        (found if first.startswith("# recording:") else skipped).append(path)
+    if not found:
+        raise PipelineError(f"{folder}: no recording (CSV starting with '# recording:') found")
+    return found, skipped
+
+
+def _progress(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _maps_grid(preset: dict, geometry):
+    """Positions [m] and currents [A] of the maps sweep for a preset (None: the maps' defaults)."""
+    from .maps import DEFAULT_CURRENT_FACTOR, default_currents, default_positions
+
+    x = i = None
+    if preset["n_x"] is not None:
+        x = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, preset["n_x"])
+    if preset["n_i"] is not None:
+        i = default_currents(DEFAULT_CURRENT_FACTOR * geometry.coil.max_current_A, preset["n_i"])
+    return x, i
+
+
+def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
+                 progress=_progress) -> dict:
+    """Run the main job (module docstring) and return the summary dict (also in ``summary.json``)."""
+    import concurrent.futures as cf
+
+    from . import identify as _identify
+    from .eddy import fit_eddy
+    from .fileio import atomic_write_text
+    from .fmu import build_fmu
+    from .geometry import load_geometry
+    from .improve import improve
+    from .maps import InlineExecutor, build_maps, load_maps, save_maps
+    from .recordings import read_recording
+    from .validate import validate
+
+    if preset not in PRESETS:
+        raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
+    cfg = PRESETS[preset]
+    say = progress or (lambda msg: None)
+    folder, out = Path(folder), Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    name = folder.resolve().name
+    times: dict = {}
+    t_all = time.perf_counter()
+
+    def step(label):
+        say(f"== {label}")
+        return time.perf_counter()
+
+    t0 = step(f"recordings in {folder}")
+    paths, skipped = find_recordings(folder)
+    recs = [read_recording(p) for p in paths]
+    kinds: dict = {}
+    for r in recs:
+        kinds[r.kind] = kinds.get(r.kind, 0) + 1
+    say("   " + ", ".join(f"{n} {k}" for k, n in kinds.items()) + (f"; skipped {len(skipped)} other CSV" if skipped
+                                                                    else ""))
+    if "flux" not in kinds:
+        raise PipelineError(f"{folder}: no 'flux' recording: the B(H) identification needs one")
+    geom = load_geometry(geometry)
+    times["recordings"] = time.perf_counter() - t0
+
+    t0 = step("identify B(H) from the flux recordings")
+    material_csv = out / "material" / "material.csv"
+    ident = _identify.identify_from_recordings(paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
+                                               out_csv=material_csv, report_dir=out / "identify",
+                                               progress=progress is not None, n_currents=cfg["n_currents"])
+    ident_summary = ident.summary()
+    say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
+        f"{ident_summary.get('equivalent_sweeps', float('nan')):.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")
+    times["identify"] = time.perf_counter() - t0
+
+    t0 = step("characteristic maps (FEM sweep with the identified steel)")
+    maps_dir = out / "maps"
+    x_m, i_A = _maps_grid(cfg, geom)
+    executor = InlineExecutor() if workers == 1 else cf.ProcessPoolExecutor(max_workers=workers)
+    try:
+        maps = build_maps(geom, ident.curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"], executor=executor,
+                          progress=progress is not None, name=f"{name}-identified")
+    finally:
+        executor.shutdown()
+    save_maps(maps, maps_dir)
+    times["maps"] = time.perf_counter() - t0
+
+    t0 = step("eddy-current parameter from the eddy recordings")
+    eddy_recs = [r for r in recs if r.kind == "eddy"]
+    eddy = None
+    if eddy_recs:
+        eddy = fit_eddy(eddy_recs, maps)
+        save_maps(maps.with_eddy(eddy.G_eddy_S, source=", ".join(r.path.name for r in eddy_recs)), maps_dir)
+        maps = load_maps(maps_dir)
+        say(f"   G_eddy = {eddy.G_eddy_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
+    else:
+        say("   no eddy recording: G_eddy stays 0")
+    times["eddy"] = time.perf_counter() - t0
+
+    t0 = step("export the FMU")
+    fmu = build_fmu(maps_dir, out / f"{name}.fmu")
+    native = None
+    try:
+        native = build_fmu(maps_dir, out / f"{name}-native.fmu", backend="c")
+    except SolenoidError as exc:  # no C compiler on this machine: the pythonfmu export still stands
+        say(f"   native FMU not built: {exc}")
+    say(f"   {fmu}" + (f", {native}" if native else ""))
+    times["export"] = time.perf_counter() - t0
+
+    t0 = step("validate and diagnose the FMU on every recording; improve")
+    res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved",
+                  progress=lambda m: say(f"   {m}"))
+    times["improve"] = time.perf_counter() - t0
+
+    t0 = step("report")
+    errors = []
+    for row in res["recordings"]:
+        for sig, m in row["signals"].items():
+            errors.append({"file": row["file"], "signal": sig, "split": row["split"], "before": m["before"],
+                           "after": m["after"], "before_nrmse": m["before_nrmse"], "after_nrmse": m["after_nrmse"]})
+    summary = {
+        "campaign": str(folder), "material": str(material_csv), "maps": str(maps_dir), "fmu": str(fmu),
+        "native_fmu": None if native is None else str(native), "improved_fmu": res["improved_fmu"],
+        "improved_maps": res["maps"], "effects_added": res["effects_added"], "errors": errors,
+        "diagnosis": res["diagnoses"][0] if res["diagnoses"] else None, "improve_steps": res["steps"],
+        "identification": ident_summary,
+        "eddy": None if eddy is None else eddy.as_dict(), "recordings": [str(p) for p in paths],
+        "skipped_files": [str(p) for p in skipped], "preset": preset, "times_s": times,
+    }
+    # validation figures of the plain FMU (the improved one's are in improved/)
+    before_fig = validate(fmu, recs, report_dir=out / "validate")
+    html_path = _write_report(out / "report.html", name, summary, ident, res, before_fig)
+    summary["report"] = str(html_path)
+    times["report"] = time.perf_counter() - t0
+    times["total"] = time.perf_counter() - t_all
+    from .improve import _jsonable
+
+    atomic_write_text(out / "summary.json", json.dumps(_jsonable(summary), indent=1) + "\n")
+    return summary
+
+
+def _write_report(path, name, summary, ident, res, before) -> Path:
+    from .report import errors_table, write_html_report
+
+    ident_dir = Path(summary["material"]).parent.parent / "identify"
+    ident_figs = sorted(ident_dir.glob("*.png"))
+    s = summary["identification"]
+    sections = [
+        {"heading": "Summary",
+         "text": (f"Campaign {summary['campaign']}: {len(summary['recordings'])} recordings. "
+                  f"Effects added to the real-time model: {', '.join(summary['effects_added']) or 'none'}.\n\n"
+                  f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
+                  f"Identified material: {summary['material']}"),
+         "table": _summary_table(summary)},
+        {"heading": "B(H) identification",
+         "text": (f"Method {s.get('method')}, {s.get('status')}; flux error (RMS of peak) "
+                  f"{ident.rms_before * 100:.3g} % with the start curve, {ident.rms_after * 100:.3g} % after; "
+                  f"identified H range {s['identified_H_range_A_per_m'][0]:.3g} .. "
+                  f"{s['identified_H_range_A_per_m'][1]:.3g} A/m; {s.get('fem_solves')} FEM solves, "
+                  f"{s.get('wall_time_s', 0):.0f} s."),
+         "figures": ident_figs},
+        {"heading": "Eddy currents",
+         "text": "No eddy recording." if summary["eddy"] is None else
+         f"G_eddy = {summary['eddy']['G_eddy_S'] * 1e3:.4g} mS. {summary['eddy'].get('message', '')}"},
+        {"heading": "Diagnosis of the FMU's residual",
+         "text": f"Verdict: {summary['diagnosis']['verdict'] if summary['diagnosis'] else 'n/a'}.",
+         "table": {"columns": ["effect", "score", "explained"],
+                   "rows": [[c["effect"], c["score"], c["explained"]]
+                            for c in (summary["diagnosis"] or {}).get("ranking", [])]}},
+        {"heading": "Improvement steps",
+         "text": "Each effect is fitted on the 'fit' recordings and kept only if the error on the 'validate' "
+                 "recordings falls by at least 10 % (mean squared NRMSE).",
+         "table": {"columns": ["effect", "kept", "validation error before", "after", "note"],
+                   "rows": [[st["effect"], "yes" if st["accepted"] else "no", st["heldout_error_before"],
+                             st["heldout_error_after"], st["note"][:120]] for st in summary["improve_steps"]]}},
+        {"heading": "Errors before and after improvement (RMS, SI units)",
+         "table": errors_table(res["before"], res["after"])},
+        {"heading": "Validation of the improved FMU", "figures": res["after"].get("figures", [])},
+        {"heading": "Validation of the FMU before improvement", "figures": before.get("figures", [])},
+    ]
+    return write_html_report(path, f"solenoid-fmu pipeline: {name}", sections)
+
+
+def _summary_table(summary) -> dict:
+    by_signal: dict = {}
+    for e in summary["errors"]:
+        if e["before_nrmse"] is None or e["after_nrmse"] is None:
+            continue
+        by_signal.setdefault(e["signal"], []).append((e["before_nrmse"], e["after_nrmse"]))
+    rows = []
+    for sig, vals in by_signal.items():
+        b = sum(v[0] for v in vals) / len(vals)
+        a = sum(v[1] for v in vals) / len(vals)
+        rows.append([sig, len(vals), b, a, a / b if b else None])
+    return {"columns": ["signal", "recordings", "mean NRMSE before", "mean NRMSE after", "ratio"], "rows": rows}
+
+
+def add_cli(sub) -> None:
+    """Register ``solenoid-fmu pipeline``."""
+    p = sub.add_parser("pipeline", help="the main job: identify, maps, eddy, FMU, validate, diagnose, improve, report")
+    p.add_argument("campaign", help="campaign folder with recordings (CSV, format v1)")
+    p.add_argument("-o", "--output", required=True, help="output directory")
+    p.add_argument("--geometry", help="geometry TOML (default: the packaged PS45)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="full",
+                   help="FEM grid quality: full (default) or quick (coarse, for checks)")
+    p.add_argument("--workers", type=int, help="processes for the maps sweep (default: all cores)")
+    p.add_argument("--json", action="store_true", help="print summary.json's content on stdout")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args) -> int:
+    s = run_pipeline(args.campaign, args.output, geometry=args.geometry, preset=args.preset, workers=args.workers)
+    if args.json:
+        from .improve import _jsonable
+
+        print(json.dumps(_jsonable(s)))
+        return 0
+    print(f"effects added: {', '.join(s['effects_added']) or 'none'}")
+    print(f"{'file':<28} {'signal':<10} {'NRMSE before':>13} {'after':>9}")
+    for e in s["errors"]:
+        b = "n/a" if e["before_nrmse"] is None else f"{e['before_nrmse'] * 100:.3f} %"
+        a = "n/a" if e["after_nrmse"] is None else f"{e['after_nrmse'] * 100:.3f} %"
+        print(f"{e['file']:<28} {e['signal']:<10} {b:>13} {a:>9}")
+    print(f"total {s['times_s']['total']:.0f} s; report: {s['report']}")
+    return 0
