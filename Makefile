@@ -20,14 +20,10 @@ lint: setup
 test: setup lint
 	$(BIN)/python -m pytest -n 2 -q
 
-# The main job until the full pipeline (issue 7) lands: one FEM operating point with its field
-# plot, then the FMU from the shipped PS45 maps driven by a 10 A/s ramp (fmpy).
-DEMO := build/demo
+# The main job: identify B(H) from the demo campaign, maps, eddy parameter, FMUs, validate,
+# diagnose, improve; report at build/ps45-demo/report.html, summary.json beside it.
 demo: setup
-	$(BIN)/solenoid-fmu solve --x-mm 1.5 --i-A 1.5 --plot $(DEMO)/field.png
-	$(BIN)/solenoid-fmu maps --from maps/ps45-literature --plot $(DEMO)/maps
-	$(BIN)/python examples/ex_fmu_ramp.py maps/ps45-literature $(DEMO)
-	$(BIN)/solenoid-fmu export maps/ps45-literature -o $(DEMO)/ps45-native.fmu --backend c
+	$(BIN)/solenoid-fmu pipeline fitting/ps45-demo -o build/ps45-demo
 
 # Regenerates the shipped PS45 map (literature steel) with its plots and exports (~1 min).
 maps: setup

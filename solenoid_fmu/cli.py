@@ -25,8 +25,8 @@ COMMAND_MODULES = (
     "eddy",
     "fmu",
     "validate",
-    "improve",
     "diagnose",
+    "improve",
     "pipeline",
 )
 

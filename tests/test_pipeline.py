@@ -1,0 +1,62 @@
+"""The main job on the demo campaign (quick FEM preset) and the campaign-folder discovery."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from solenoid_fmu.pipeline import PipelineError, find_recordings, run_pipeline
+
+DEMO = Path(__file__).resolve().parent.parent / "fitting" / "ps45-demo"
+WORDS = {"hysteresis", "eddy", "heating", "friction", "sensor", "material"}
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pipeline")
+    summary = run_pipeline(DEMO, out, preset="quick", workers=2, progress=None)
+    return out, summary
+
+
+def test_summary_json_has_the_documented_fields_and_files(demo):
+    out, summary = demo
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk["effects_added"] == summary["effects_added"]
+    for key in ("material", "fmu", "improved_fmu", "report"):
+        assert Path(on_disk[key]).is_file(), key
+    assert set(on_disk["effects_added"]) <= WORDS
+    assert all({"file", "signal", "before", "after"} <= set(e) for e in on_disk["errors"])
+    assert not any("truth" in Path(p).parts for p in on_disk["recordings"])  # never reads the truth
+    html = (out / "report.html").read_text()
+    assert html.count("data:image/png;base64") >= 10 and "<img src=\"http" not in html
+
+
+def test_pipeline_finds_the_campaigns_true_effects_and_cuts_the_errors(demo):
+    _, summary = demo
+    truth = json.loads((DEMO / "truth.json").read_text())  # tests may read the truth, the pipeline may not
+    true_fx = {{"eddy-ladder": "eddy"}.get(k, k) for k, v in truth["effects"].items() if v and k != "noise"}
+    added = summary["effects_added"]
+    assert len(added) >= 2 and set(added) <= true_fx, (added, true_fx)
+    force = [e for e in summary["errors"] if e["signal"] == "force_N" and e["before"] > 0.5]
+    assert force and sum(e["after"] for e in force) < 0.5 * sum(e["before"] for e in force)
+    flux = [e for e in summary["errors"] if e["signal"] == "psi_Wb"]
+    assert sum(e["after"] for e in flux) < 0.7 * sum(e["before"] for e in flux)
+    assert all(e["after"] <= 1.1 * e["before"] for e in summary["errors"]), "no signal may get much worse"
+
+
+def test_find_recordings_skips_truth_and_other_csv(tmp_path):
+    (tmp_path / "truth").mkdir()
+    src = next((DEMO / "recordings").glob("01_*.csv"))
+    (tmp_path / "truth" / "r.csv").write_text(src.read_text())
+    (tmp_path / "a.csv").write_text(src.read_text())
+    (tmp_path / "notes.csv").write_text("H,B\n1,2\n")
+    found, skipped = find_recordings(tmp_path)
+    assert [p.name for p in found] == ["a.csv"] and [p.name for p in skipped] == ["notes.csv"]
+    with pytest.raises(PipelineError, match="no recording"):
+        find_recordings(_empty(tmp_path))
+
+
+def _empty(tmp_path):
+    d = tmp_path / "empty"
+    d.mkdir()
+    return d
