@@ -78,7 +78,13 @@ CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-Wall", "
 C_STATE_LAYOUT = 1
 C_STATE_NAMES = ("state_layout", "time_s", "psi_Wb", "initialized", "excursion_psi", "excursion_x",
                  "excursion_extrapolated", "out_i_A", "out_U_V", "out_F_N", "out_dpsi_dt_V", "out_i_eddy_A")
-C_PARAMS = ("R_ohm", "G_eddy_S", "drive_mode", "Psi0_Wb", "h_sub_max_s")
+C_PARAMS = ("R_ohm", "G_eddy_S", "drive_mode", "Psi0_Wb", "h_sub_max_s", "hysteresis_on", "hyst_gain",
+            "eddy_ladder_on", "heating_on", "C_th_J_per_K", "R_th_K_per_W", "alpha_per_K", "friction_on",
+            "friction_N", "presliding_m")
+#: The effect sub-models and effect states the C template implements (model.EFFECT_NAMES,
+#: model.EFFECT_STATE_NAMES; then one ladder_k per eddy section and one play_k per play operator).
+C_EFFECT_NAMES = ("hysteresis", "eddy_ladder", "heating", "friction")
+C_EFFECT_STATE_NAMES = ("T_rise_K", "F_friction_N", "x_prev_m", "i_hyst_A")
 #: Model-exchange locals after the 15 variables of :data:`solenoid_fmu.fmu.VARIABLES`:
 #: (name, unit, description); value references 15 and 16.
 ME_VARIABLES = (
@@ -86,6 +92,25 @@ ME_VARIABLES = (
                            "with G_eddy_S = 0, where Psi follows the input algebraically)"),
     ("der(psi_state_Wb)", "V", "dPsi/dt [V] of the model-exchange state (paper eqs. 1-2 solved for dPsi/dt)"),
 )
+
+
+def me_variables(tables: _model.MapTables) -> tuple:
+    """Model-exchange locals of the native FMU for these maps: (name, unit, description) of the
+    continuous states, then of their derivatives (value references from ``len(interface_for(tables))``).
+
+    Without effects: :data:`ME_VARIABLES`. With effects, after ``psi_state_Wb``: one
+    ``ladder_state_<k>_A`` per eddy-ladder section and ``T_state_K`` when the maps carry heating.
+    """
+    fx = _model._effects_data(tables) if tables.meta.get("effects") else {}
+    states = [ME_VARIABLES[0]]
+    for k in range(len((fx.get("eddy_ladder") or {}).get("G_S", ()))):
+        states.append((f"ladder_state_{k}_A", "A", f"continuous state of model exchange: current of eddy-ladder "
+                                                   f"section {k} [A] (tau_k di_k/dt = G_k dPsi/dt - i_k)"))
+    if "heating" in fx:
+        states.append(("T_state_K", "K", "continuous state of model exchange: coil temperature rise [K] "
+                                         "(C_th dT/dt = R(T) i^2 - T / R_th)"))
+    ders = [ME_VARIABLES[1]] + [(f"der({n})", u + "/s", f"time derivative of {n}") for n, u, _ in states[1:]]
+    return tuple(states) + tuple(ders)
 
 
 def fmi_header_dir() -> Path:
@@ -125,6 +150,51 @@ def _c_array(values, per_line: int = 4, rows: bool = False) -> str:
     if rows:
         lines = ["{" + line + "}" for line in lines]
     return "    " + ",\n    ".join(lines)
+
+
+def _c_bool(v) -> str:
+    return "1" if v else "0"
+
+
+def _c_table(name: str, values, comment: str) -> str:
+    """A constant C array (at least one element: C99 has no empty arrays; the count macro says how many)."""
+    vals = list(values) or [0.0]
+    return f"/* {comment} */\nstatic const double {name}[{len(vals)}] = {{\n{_c_array(vals)}\n}};\n"
+
+
+def _effects_header(tables: _model.MapTables, params: dict) -> str:
+    """The effect sub-models' data (maps.json ``effects``) as C macros and constant arrays."""
+    try:
+        fx = _model._effects_data(tables)
+    except _model.ModelError as exc:
+        raise FmuBuildError(f"{tables.where}: {exc}") from None
+    hy = fx.get("hysteresis") or {}
+    lad = fx.get("eddy_ladder") or {}
+    lines = [
+        "/* effect sub-models (maps.json effects; model.py _effects_data, SolenoidModel._step_fx) */",
+        f"#define SOL_HAS_FX {_c_bool(tables.meta.get('effects'))}   /* the FMU has the effect variables */",
+        f"#define SOL_FX_HYST {_c_bool('hysteresis' in fx)}",
+        f"#define SOL_FX_LAD {_c_bool('eddy_ladder' in fx)}",
+        f"#define SOL_FX_HEAT {_c_bool('heating' in fx)}",
+        f"#define SOL_FX_FRIC {_c_bool('friction' in fx)}",
+        f"#define SOL_N_LAD {len(lad.get('G_S', ()))}     /* eddy-ladder sections */",
+        f"#define SOL_N_PLAY {len(hy.get('r', ()))}    /* play operators */",
+        f"#define SOL_N_SHAPE {len(hy.get('gb', ()))}   /* nodes of the hysteresis shape g(Psi) (0: g = 1) */",
+        "#define SOL_HYST_ON_DEFAULT " + _c_bool(params.get("hysteresis_on")),
+        "#define SOL_LAD_ON_DEFAULT " + _c_bool(params.get("eddy_ladder_on")),
+        "#define SOL_HEAT_ON_DEFAULT " + _c_bool(params.get("heating_on")),
+        "#define SOL_FRIC_ON_DEFAULT " + _c_bool(params.get("friction_on")),
+    ]
+    for key in ("hyst_gain", "C_th_J_per_K", "R_th_K_per_W", "alpha_per_K", "friction_N", "presliding_m"):
+        lines.append(f"static const double SOL_{key.upper()}_DEFAULT = {_c_double(params[key])};")
+    out = "\n".join(lines) + "\n"
+    out += _c_table("SOL_LAD_G", lad.get("G_S", ()), "eddy-ladder section conductances G_k [S]")
+    out += _c_table("SOL_LAD_TAU", lad.get("tau_s", ()), "eddy-ladder section time constants tau_k [s]")
+    out += _c_table("SOL_PLAY_R", hy.get("r", ()), "play thresholds r_j [Wb]")
+    out += _c_table("SOL_PLAY_W", hy.get("w", ()), "play weights w_j [A/Wb]")
+    out += _c_table("SOL_SHAPE_B", hy.get("gb", ()), "shape nodes Psi [Wb] (increasing)")
+    out += _c_table("SOL_SHAPE_G", hy.get("gg", ()), "shape factors g [-]")
+    return out
 
 
 def _maps_header(tables: _model.MapTables, params: dict, guid: str) -> str:
@@ -172,6 +242,7 @@ static const double SOL_CI[(SOL_N_PSI - 1) * (SOL_N_X - 1)][8] = {{
 static const double SOL_CF[(SOL_N_PSI - 1) * (SOL_N_X - 1)][8] = {{
 {_c_array(cf, 8, rows=True)}
 }};
+{_effects_header(tables, params)}
 #endif
 """
 
@@ -193,7 +264,8 @@ endif()
 def _check_model_version() -> None:
     """Refuse to generate C for a model.py whose states or parameters the C template lacks."""
     if (_model.STATE_LAYOUT != C_STATE_LAYOUT or tuple(_model.STATE_NAMES) != C_STATE_NAMES
-            or tuple(_model.DEFAULT_PARAMS)[: len(C_PARAMS)] != C_PARAMS):
+            or tuple(_model.DEFAULT_PARAMS) != C_PARAMS or tuple(_model.EFFECT_NAMES) != C_EFFECT_NAMES
+            or tuple(_model.EFFECT_STATE_NAMES) != C_EFFECT_STATE_NAMES):
         raise FmuBuildError(
             f"the native backend implements model state layout {C_STATE_LAYOUT} ({len(C_STATE_NAMES)} states, "
             f"parameters {', '.join(C_PARAMS)}); solenoid_fmu/model.py has layout {_model.STATE_LAYOUT} "
@@ -202,16 +274,7 @@ def _check_model_version() -> None:
             "solenoid_fmu.fmu_c.C_STATE_NAMES / C_PARAMS, or export with --backend python")
 
 
-def _check_no_effects(tables: _model.MapTables) -> None:
-    """The effect sub-models (maps.json ``effects``, issue 7) are not in the C template yet."""
-    fx = [k for k, v in (tables.meta.get("effects") or {}).items() if v]
-    if fx:
-        raise FmuBuildError(f"{tables.where}: the maps carry effect sub-models ({', '.join(fx)}) that the native "
-                            "backend does not implement yet; export them with --backend python")
-
-
 def _default_params(tables: _model.MapTables) -> dict:
-    _check_no_effects(tables)
     try:
         return dict(_model.SolenoidModel(tables).params)
     except _model.ModelError as exc:
@@ -290,7 +353,7 @@ def _raw_model_description(guid: str, params: dict, tables: _model.MapTables) ->
     """
     from lxml import etree
 
-    from .fmu import MODEL_IDENTIFIER, VARIABLES
+    from .fmu import MODEL_IDENTIFIER, VARIABLES, interface_for
 
     root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName="solenoid", guid=guid,
                          numberOfEventIndicators="0")
@@ -305,12 +368,16 @@ def _raw_model_description(guid: str, params: dict, tables: _model.MapTables) ->
     starts = {"U_V": 0.0, "i_A": 0.0, "x_m": 0.5 * (tables.x_min_m + tables.x_max_m), "R_ohm": params["R_ohm"],
               "G_eddy_S": params["G_eddy_S"], "drive_mode": params["drive_mode"], "Psi0_Wb": params["Psi0_Wb"],
               "h_sub_max_s": params["h_sub_max_s"]}
+    variables = interface_for(tables)
+    starts.update({v.name: params[v.name] for v in variables[len(VARIABLES):] if v.causality == "parameter"})
     mv = etree.SubElement(root, "ModelVariables")
-    for k, v in enumerate(VARIABLES):
+    for k, v in enumerate(variables):
         sv = etree.SubElement(mv, "ScalarVariable", name=v.name, valueReference=str(k))
         el = etree.SubElement(sv, "Integer" if v.type == "Enumeration" else v.type)
         if v.name in starts:
-            el.set("start", repr(starts[v.name]) if v.type == "Real" else str(int(starts[v.name])))
+            start = starts[v.name]
+            el.set("start", repr(float(start)) if v.type == "Real" else ("true" if start else "false")
+                   if v.type == "Boolean" else str(int(start)))
     etree.SubElement(root, "ModelStructure")
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
 
@@ -360,8 +427,9 @@ def finish_model_description(fmu_path, tables: _model.MapTables) -> None:
     """
     from lxml import etree
 
-    from .fmu import MODEL_IDENTIFIER, VARIABLES
+    from .fmu import MODEL_IDENTIFIER, interface_for
 
+    variables = interface_for(tables)
     fmu_path = Path(fmu_path)
     with zipfile.ZipFile(fmu_path) as zf:
         entries = [(info, zf.read(info.filename)) for info in zf.infolist()]
@@ -381,34 +449,45 @@ def finish_model_description(fmu_path, tables: _model.MapTables) -> None:
         etree.SubElement(files, "File", name="solenoid_fmu.c")
     root.insert(list(root).index(cs), me)
 
-    index = {v.name: k + 1 for k, v in enumerate(VARIABLES)}
+    index = {v.name: k + 1 for k, v in enumerate(variables)}
     mv = root.find("ModelVariables")
-    n0 = len(VARIABLES)
-    for k, (name, unit, desc) in enumerate(ME_VARIABLES):
+    n0 = len(variables)
+    locals_ = me_variables(tables)
+    nx = len(locals_) // 2
+    for k, (name, unit, desc) in enumerate(locals_):
         sv = etree.SubElement(mv, "ScalarVariable", name=name, valueReference=str(n0 + k), description=desc,
                               causality="local", variability="continuous", initial="calculated")
         real = etree.SubElement(sv, "Real", unit=unit)
         if k == 0:
             real.set("displayUnit", "mWb")
-        else:
-            real.set("derivative", str(n0 + 1))
-    i_state, i_der = n0 + 1, n0 + 2
+        elif k >= nx:
+            real.set("derivative", str(n0 + 1 + k - nx))
+    units = root.find("UnitDefinitions")
+    have = {el.get("name") for el in units}
+    for name, exps in (("A/s", {"A": "1", "s": "-1"}), ("K/s", {"K": "1", "s": "-1"})):
+        if name not in have and any(unit == name for _, unit, _ in locals_):
+            etree.SubElement(etree.SubElement(units, "Unit", name=name), "BaseUnit", **exps)
+    i_states = tuple(range(n0 + 1, n0 + 1 + nx))
+    i_ders = tuple(range(n0 + 1 + nx, n0 + 1 + 2 * nx))
     u, i, x = index["U_V"], index["i_A"], index["x_m"]
-    # union over both drive modes of the model-exchange dependencies (see the module docstring)
-    deps = {"i_out_A": (u, i, x, i_state), "U_out_V": (u, i, x, i_state), "F_N": (i, x, i_state),
-            "psi_Wb": (i, x, i_state), "dpsi_dt_V": (u, i, x, i_state), "i_eddy_A": (u, i, x, i_state),
-            "out_of_map": (i, x, i_state)}
+    # union over both drive modes of the model-exchange dependencies (see the module docstring); with
+    # effects every output may depend on every state (conservative)
+    st = i_states[:1] if nx == 1 else i_states
+    deps = {"i_out_A": (u, i, x, *st), "U_out_V": (u, i, x, *st), "F_N": (i, x, *st),
+            "psi_Wb": (i, x, *st), "dpsi_dt_V": (u, i, x, *st), "i_eddy_A": (u, i, x, *st),
+            "out_of_map": (i, x, *st), "i_hyst_A": (i, x, *st), "T_rise_K": (u, i, x, *st)}
     ms = root.find("ModelStructure")
     outputs = ms.find("Outputs")
     for unk in outputs:
-        name = VARIABLES[int(unk.get("index")) - 1].name
+        name = variables[int(unk.get("index")) - 1].name
         unk.set("dependencies", " ".join(str(d) for d in deps[name]))
     derivs = etree.Element("Derivatives")
-    etree.SubElement(derivs, "Unknown", index=str(i_der), dependencies=f"{u} {i} {x} {i_state}")
+    for idx in i_ders:
+        etree.SubElement(derivs, "Unknown", index=str(idx), dependencies=" ".join(str(d) for d in (u, i, x, *st)))
     ms.insert(list(ms).index(outputs) + 1, derivs)
     initial = ms.find("InitialUnknowns")
-    knowns = " ".join(str(index[v.name]) for v in VARIABLES if v.causality in ("input", "parameter"))
-    for idx in (i_state, i_der):
+    knowns = " ".join(str(index[v.name]) for v in variables if v.causality in ("input", "parameter"))
+    for idx in i_states + i_ders:
         etree.SubElement(initial, "Unknown", index=str(idx), dependencies=knowns)
     xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 

@@ -54,12 +54,27 @@ enum {
     N_STATE
 };
 
-/* Value references (= positions in solenoid_fmu.fmu.VARIABLES, then the model-exchange locals). */
+/* Effect states (model.py EFFECT_STATE_NAMES, then ladder_k, then play_k), kept in Core.fx. */
+enum { FX_T, FX_FFR, FX_XPREV, FX_IH, FX_LAD };
+#define FX_PLAY (FX_LAD + SOL_N_LAD)
+#define N_FX (FX_PLAY + SOL_N_PLAY)
+#define LAD_ALLOC (SOL_N_LAD > 0 ? SOL_N_LAD : 1)
+
+/* Value references (= positions in solenoid_fmu.fmu.interface_for(tables): VARIABLES, then
+ * EFFECT_VARIABLES when the maps carry effects; then the model-exchange locals). */
 enum {
     VR_U = 0, VR_I, VR_X, VR_I_OUT, VR_U_OUT, VR_F, VR_PSI, VR_DPSI, VR_IEDDY, VR_OOM,
-    VR_R, VR_G, VR_DRIVE, VR_PSI0, VR_HSUB, VR_PSI_STATE, VR_DER_PSI_STATE,
-    N_VR
+    VR_R, VR_G, VR_DRIVE, VR_PSI0, VR_HSUB,
+    VR_IHYST, VR_TRISE, VR_HYST_ON, VR_HYST_GAIN, VR_LAD_ON, VR_HEAT_ON, VR_CTH, VR_RTH, VR_ALPHA,
+    VR_FRIC_ON, VR_FRIC_N, VR_PRESL
 };
+#define N_VR_IFACE (SOL_HAS_FX ? VR_PRESL + 1 : VR_HSUB + 1)
+#define VR_PSI_STATE ((fmi2ValueReference)N_VR_IFACE)
+/* Model exchange continuous states: Psi, the eddy-ladder currents, the temperature rise. */
+#define ME_LAD 1
+#define ME_T (ME_LAD + SOL_N_LAD)
+#define NX (ME_T + SOL_FX_HEAT)
+#define VR_DER_PSI_STATE ((fmi2ValueReference)(N_VR_IFACE + NX))
 
 enum { PH_INSTANTIATED, PH_INIT, PH_STEP, PH_EVENT, PH_CONT, PH_TERMINATED };
 
@@ -73,7 +88,14 @@ typedef struct {
     double t0_s;
     int dirty, ready;
     double s[N_STATE];                          /* model.py's state vector */
+    /* effect sub-models: switches and scalars as set, then in use (model.py params) */
+    int hyst_set, lad_set, heat_set, fric_set;
+    double gain_set, Cth_set, Rth_set, alpha_set, fricN_set, presl_set;
+    int fx_on, hyst_on, lad_on, heat_on, fric_on;
+    double gain, Cth, Rth, alpha, fricN, presl;
+    double fx[N_FX];                            /* effect states (model.py SolenoidModel._fx) */
     double me_time_s, me_psi_Wb;                /* model exchange: time and continuous state */
+    double me_lad[LAD_ALLOC], me_T;             /* model exchange: ladder currents [A], T rise [K] */
 } Core;
 
 typedef struct {
@@ -265,7 +287,29 @@ static void finish(Inst *in, double *s, int pc, double i_f, double x_m, int xc, 
 }
 
 /* ---- parameters ----------------------------------------------------------------------------- */
-/* Validate and apply the parameters as set (all, or only the tunable R and G); 0 on error. */
+/* An effect scalar: finite and >= 0 (> 0 when positive); 0 (logged) otherwise (model.py set_params). */
+static int fx_scalar_ok(Inst *in, const char *name, double v, int positive)
+{
+    if (!is_finite(v)) { say(in, fmi2Error, "%s must be finite, got %.17g", name, v); return 0; }
+    if (v < 0.0 || (positive && v == 0.0)) {
+        say(in, fmi2Error, "%s must be > 0 (>= 0 for alpha and friction), got %.17g", name, v);
+        return 0;
+    }
+    return 1;
+}
+
+/* A switch may only be on when the maps carry that effect (model.py set_params). */
+static int fx_switch_ok(Inst *in, const char *name, const char *effect, int on, int available)
+{
+    if (on && !available) {
+        say(in, fmi2Error, "%s: the maps carry no '%s' effect (maps.json 'effects')", name, effect);
+        return 0;
+    }
+    return 1;
+}
+
+/* Validate and apply the parameters as set (all, or only the tunable R, G, hyst_gain, friction_N);
+ * 0 on error (nothing applied). */
 static int apply_params(Inst *in, int all)
 {
     Core *c = &in->core;
@@ -275,6 +319,20 @@ static int apply_params(Inst *in, int all)
     if (R <= 0.0) { say(in, fmi2Error, "R_ohm must be > 0 ohm, got %.17g", R); return 0; }
     if (!is_finite(G)) { say(in, fmi2Error, "G_eddy_S must be finite, got %.17g", G); return 0; }
     if (G < 0.0) { say(in, fmi2Error, "G_eddy_S must be >= 0 S, got %.17g", G); return 0; }
+    if (SOL_HAS_FX) {
+        if (!is_finite(c->gain_set)) { say(in, fmi2Error, "hyst_gain must be finite, got %.17g", c->gain_set); return 0; }
+        if (c->gain_set < 0.0) { say(in, fmi2Error, "hyst_gain must be >= 0, got %.17g", c->gain_set); return 0; }
+        if (!fx_scalar_ok(in, "friction_N", c->fricN_set, 0)) return 0;
+    }
+    if (all && SOL_HAS_FX) {
+        if (!fx_switch_ok(in, "hysteresis_on", "hysteresis", c->hyst_set, SOL_FX_HYST)
+            || !fx_switch_ok(in, "eddy_ladder_on", "eddy_ladder", c->lad_set, SOL_FX_LAD)
+            || !fx_switch_ok(in, "heating_on", "heating", c->heat_set, SOL_FX_HEAT)
+            || !fx_switch_ok(in, "friction_on", "friction", c->fric_set, SOL_FX_FRIC)
+            || !fx_scalar_ok(in, "C_th_J_per_K", c->Cth_set, 1) || !fx_scalar_ok(in, "R_th_K_per_W", c->Rth_set, 1)
+            || !fx_scalar_ok(in, "alpha_per_K", c->alpha_set, 0) || !fx_scalar_ok(in, "presliding_m", c->presl_set, 1))
+            return 0;
+    }
     if (all) {
         if (drive != DRIVE_VOLTAGE && drive != DRIVE_CURRENT) {
             say(in, fmi2Error, "drive_mode must be 1 (voltage) or 2 (current), got %d", drive);
@@ -288,7 +346,18 @@ static int apply_params(Inst *in, int all)
         c->Psi0 = c->Psi0_set;
         c->hsub = c->hsub_set;
         c->inv_hsub = 1.0 / c->hsub;
+        c->hyst_on = c->hyst_set;
+        c->lad_on = c->lad_set;
+        c->heat_on = c->heat_set;
+        c->fric_on = c->fric_set;
+        c->fx_on = c->hyst_on || c->lad_on || c->heat_on || c->fric_on;
+        c->Cth = c->Cth_set;
+        c->Rth = c->Rth_set;
+        c->alpha = c->alpha_set;
+        c->presl = c->presl_set;
     }
+    c->gain = c->gain_set;
+    c->fricN = c->fricN_set;
     c->voltage = drive == DRIVE_VOLTAGE;
     c->R = R;
     c->G = G;
@@ -345,8 +414,16 @@ static int initialize(Inst *in)
     s[ST_IEDDY] = G * dpsi;
     finish(in, s, pc, i_f, c->x_m, xc, c->t0_s);
     memcpy(c->s, s, sizeof s);
+    {
+        int k;
+        for (k = 0; k < N_FX; k++) c->fx[k] = 0.0;
+        c->fx[FX_XPREV] = c->x_m;
+        for (k = FX_PLAY; k < N_FX; k++) c->fx[k] = psi;   /* plays neutral at the start flux */
+    }
     c->me_time_s = c->t0_s;
     c->me_psi_Wb = psi;
+    memset(c->me_lad, 0, sizeof c->me_lad);
+    c->me_T = 0.0;
     c->ready = 1;
     c->dirty = 0;
     return 1;
@@ -387,20 +464,164 @@ static void sol_step(Inst *in, double t_s, double h)
     finish(in, s, pc, i_f, x, xc, t_s + h);
 }
 
-/* ---- model exchange evaluation ------------------------------------------------------------- */
-typedef struct { double i, U, F, psi, dpsi, ieddy, der; int pc, xc; double i_f; } MeOut;
+/* ---- effect sub-models (model.py _play_step, SolenoidModel._step_fx) ------------------------ */
+/* Advance the play operators to b [Wb] (in place) and return g(b) sum w_j (b - p_j) [A]. */
+static double play_step(double *plays, double b)
+{
+    double acc = 0.0, g;
+    int k;
+    for (k = 0; k < SOL_N_PLAY; k++) {
+        double lo = b - SOL_PLAY_R[k], hi = b + SOL_PLAY_R[k], q = plays[k];
+        if (q < lo) q = lo;
+        else if (q > hi) q = hi;
+        plays[k] = q;
+        acc += SOL_PLAY_W[k] * (b - q);
+    }
+    if (SOL_N_SHAPE == 0) return acc;
+    if (b <= SOL_SHAPE_B[0]) g = SOL_SHAPE_G[0];
+    else if (b >= SOL_SHAPE_B[SOL_N_SHAPE - 1]) g = SOL_SHAPE_G[SOL_N_SHAPE - 1];
+    else {
+        int lo = 0, hi = SOL_N_SHAPE - 1;   /* SOL_SHAPE_B[lo] <= b < SOL_SHAPE_B[hi] (bisect_right - 1) */
+        while (hi - lo > 1) {
+            int mid = (lo + hi) / 2;
+            if (SOL_SHAPE_B[mid] <= b) lo = mid; else hi = mid;
+        }
+        g = SOL_SHAPE_G[lo] + (b - SOL_SHAPE_B[lo]) / (SOL_SHAPE_B[lo + 1] - SOL_SHAPE_B[lo])
+            * (SOL_SHAPE_G[lo + 1] - SOL_SHAPE_G[lo]);
+    }
+    return g * acc;
+}
 
+/* One communication step with effect sub-models on (model.py SolenoidModel._step_fx, same arithmetic
+ * and order). Equations (SI):
+ *     U = R(T) i + e,  e = dPsi/dt,  R(T) = R (1 + alpha T)
+ *     i = i_f(Psi, x) + i_h + G e + sum_k i_k,   tau_k di_k/dt = G_k e - i_k   (eddy ladder)
+ *     i_h = gain g(Psi) sum_j w_j (Psi - play_j(Psi))                              (hysteresis)
+ *     C_th dT/dt = R(T) i^2 - T / R_th                                             (heating)
+ *     F = F(Psi, x) + F_fr,  F_fr -> +-F_c over |dx| ~ presliding                  (Dahl friction)
+ * Flux and ladder currents: ROS2 in mass-matrix form (arrow system, O(sections)); hysteresis and
+ * temperature explicitly after every sub-step; friction once per step. Inputs checked. */
+static void sol_step_fx(Inst *in, double t_s, double h)
+{
+    Core *c = &in->core;
+    double *s = c->s, *fx = c->fx, *plays = c->fx + FX_PLAY;
+    const int voltage = c->voltage, heat = c->heat_on, hy = c->hyst_on, nl = c->lad_on ? SOL_N_LAD : 0;
+    const double u = voltage ? c->u_V : c->i_A, x = c->x_m, R0 = c->R, G0 = c->G;
+    const double alpha = c->alpha, Cth = c->Cth, Rth = c->Rth, gain = c->gain, pm = SOL_PSI_MAX;
+    double ik[LAD_ALLOC], a[LAD_ALLOC], z[LAD_ALLOC], i2[LAD_ALLOC], r[LAD_ALLOC], q[LAD_ALLOC];
+    double T = fx[FX_T], ih = fx[FX_IH], psi0 = s[ST_PSI], psi = psi0, hs, gh, nd, w, R, sik, i_f, d_end, force;
+    double dpsi, ffr;
+    long n, sub;
+    int j, xc, pc = 0, k;
+    x_cell(x, &j, &w, &xc);
+    for (k = 0; k < nl; k++) ik[k] = fx[FX_LAD + k];
+    nd = ceil(h / c->hsub - 1e-9);
+    n = nd < 1.0 ? 1 : (long)nd;
+    hs = h / (double)n;
+    gh = ROS2_GAMMA * hs;
+    for (sub = 0; sub < n; sub++) {
+        double m, cc, psi_a = psi;
+        R = heat ? R0 * (1.0 + alpha * T) : R0;
+        m = voltage ? 1.0 + R * G0 : G0;
+        cc = voltage ? R : 1.0;
+        if (m == 0.0 && nl == 0) {
+            psi = solve_psi(u - ih, j, w, psi, &pc);
+        } else {
+            double v, d, f, den, f0, z0, p2, v2, q0, acc;
+            eval3(psi, j, w, &v, &d, &f);
+            for (k = 0; k < nl; k++) a[k] = SOL_LAD_TAU[k] + gh;
+            acc = 0.0;
+            for (k = 0; k < nl; k++) acc += gh * cc * SOL_LAD_G[k] / a[k];
+            den = m + gh * cc * d + acc;
+            acc = 0.0;
+            for (k = 0; k < nl; k++) acc += ik[k];
+            f0 = u - cc * (v + ih + acc);
+            for (k = 0; k < nl; k++) r[k] = -ik[k];
+            acc = 0.0;
+            for (k = 0; k < nl; k++) acc += r[k] / a[k];
+            z0 = (f0 - gh * cc * acc) / den;
+            for (k = 0; k < nl; k++) z[k] = (r[k] + SOL_LAD_G[k] * z0) / a[k];
+            p2 = psi + hs * z0;
+            for (k = 0; k < nl; k++) i2[k] = ik[k] + hs * z[k];
+            v2 = if_value(p2, j, w);
+            acc = 0.0;
+            for (k = 0; k < nl; k++) acc += i2[k];
+            f0 = u - cc * (v2 + ih + acc) - 2.0 * m * z0;
+            for (k = 0; k < nl; k++) r[k] = -i2[k] - 2.0 * (SOL_LAD_TAU[k] * z[k] - SOL_LAD_G[k] * z0);
+            acc = 0.0;
+            for (k = 0; k < nl; k++) acc += r[k] / a[k];
+            q0 = (f0 - gh * cc * acc) / den;
+            for (k = 0; k < nl; k++) q[k] = (r[k] + SOL_LAD_G[k] * q0) / a[k];
+            psi = psi + 1.5 * hs * z0 + 0.5 * hs * q0;
+            for (k = 0; k < nl; k++) ik[k] = ik[k] + 1.5 * hs * z[k] + 0.5 * hs * q[k];
+            if (psi > pm) { psi = pm; pc = 1; }
+            else if (psi < -pm) { psi = -pm; pc = 1; }
+        }
+        if (heat) {
+            double i_sub = voltage ? (u - (psi - psi_a) / hs) / R : u;
+            T += hs * (R * i_sub * i_sub - T / Rth) / Cth;
+        }
+        if (hy) ih = gain * play_step(plays, psi);
+    }
+    eval3(psi, j, w, &i_f, &d_end, &force);
+    R = heat ? R0 * (1.0 + alpha * T) : R0;
+    sik = 0.0;
+    for (k = 0; k < nl; k++) sik += ik[k];
+    if (voltage) {
+        dpsi = (u - R * (i_f + ih + sik)) / (1.0 + R * G0);
+        s[ST_I] = i_f + ih + G0 * dpsi + sik;
+        s[ST_U] = u;
+    } else {
+        dpsi = (psi - psi0) / h;
+        s[ST_I] = u;
+        s[ST_U] = R * u + dpsi;
+    }
+    ffr = fx[FX_FFR];
+    if (c->fric_on) {
+        double dx = x - fx[FX_XPREV];
+        if (dx != 0.0) {
+            double target = dx > 0.0 ? c->fricN : -c->fricN;
+            ffr = target + (ffr - target) * exp(-fabs(dx) / c->presl);
+        }
+    }
+    s[ST_TIME] = t_s + h;
+    s[ST_PSI] = psi;
+    s[ST_F] = force + ffr;
+    s[ST_DPSI] = dpsi;
+    s[ST_IEDDY] = G0 * dpsi + sik;
+    fx[FX_T] = T;
+    fx[FX_FFR] = ffr;
+    fx[FX_XPREV] = x;
+    fx[FX_IH] = ih;
+    for (k = 0; k < nl; k++) fx[FX_LAD + k] = ik[k];
+    finish(in, s, pc, i_f, x, xc, t_s + h);
+}
+
+/* ---- model exchange evaluation ------------------------------------------------------------- */
+typedef struct { double i, U, F, psi, dpsi, ieddy, der[NX]; int pc, xc; double i_f, ih, T; } MeOut;
+
+/* Model exchange: outputs and derivatives of the continuous states at (states, inputs).
+ * Paper eqs. (1)-(3) with the effects solved for e = dPsi/dt (R = R(T) with heating):
+ *   voltage:          e = (U - R (i_f + i_h + sum i_k)) / (1 + R G),  i = i_f + i_h + G e + sum i_k
+ *   current, G > 0:   e = (i - i_f - i_h - sum i_k) / G,               U = R i + e
+ *   current, G = 0 (no ladder): i_f(Psi, x) = i - i_h algebraic, e = 0, U = R i
+ *   der(i_k) = (G_k e - i_k) / tau_k,   der(T) = (R i^2 - T / R_th) / C_th
+ * i_h (hysteresis) and the friction force are discrete states, updated at events (see
+ * fmi2NewDiscreteStates). */
 static void me_eval(const Core *c, MeOut *o)
 {
-    const double u = c->voltage ? c->u_V : c->i_A, R = c->R, G = c->G, pm = SOL_PSI_MAX;
-    double psi = c->me_psi_Wb, i_f, d, f, w;
-    int j;
+    const double u = c->voltage ? c->u_V : c->i_A, G = c->G, pm = SOL_PSI_MAX;
+    const int nl = c->lad_on ? SOL_N_LAD : 0;
+    double psi = c->me_psi_Wb, i_f, d, f, w, sik = 0.0, ih = c->fx[FX_IH], T = c->heat_on ? c->me_T : 0.0, R;
+    int j, k;
+    R = c->heat_on ? c->R * (1.0 + c->alpha * T) : c->R;
+    for (k = 0; k < NX; k++) o->der[k] = 0.0;
+    for (k = 0; k < nl; k++) sik += c->me_lad[k];
     x_cell(c->x_m, &j, &w, &o->xc);
-    if (!c->voltage && G == 0.0) {
-        psi = solve_psi(u, j, w, 0.0, &o->pc);
+    if (!c->voltage && G == 0.0 && nl == 0) {
+        psi = solve_psi(u - ih, j, w, 0.0, &o->pc);
         eval3(psi, j, w, &i_f, &d, &f);
         o->dpsi = 0.0;
-        o->der = 0.0;
         o->i = u;
         o->U = R * u;
     } else {
@@ -409,21 +630,25 @@ static void me_eval(const Core *c, MeOut *o)
         else if (psi < -pm) psi = -pm;
         eval3(psi, j, w, &i_f, &d, &f);
         if (c->voltage) {
-            o->dpsi = (u - R * i_f) / c->m;
-            o->i = i_f + G * o->dpsi;
+            o->dpsi = (u - R * (i_f + ih + sik)) / (1.0 + R * G);
+            o->i = i_f + ih + G * o->dpsi + sik;
             o->U = u;
         } else {
-            o->dpsi = (u - i_f) / G;
+            o->dpsi = (u - i_f - ih - sik) / G;   /* G = 0 with the ladder is refused in me_prepare */
             o->i = u;
             o->U = R * u + o->dpsi;
         }
-        o->der = o->dpsi;
-        if (o->pc && ((psi > 0.0 && o->der > 0.0) || (psi < 0.0 && o->der < 0.0))) o->der = 0.0;
+        o->der[0] = o->dpsi;
+        if (o->pc && ((psi > 0.0 && o->der[0] > 0.0) || (psi < 0.0 && o->der[0] < 0.0))) o->der[0] = 0.0;
     }
+    for (k = 0; k < nl; k++) o->der[ME_LAD + k] = (SOL_LAD_G[k] * o->dpsi - c->me_lad[k]) / SOL_LAD_TAU[k];
+    if (SOL_FX_HEAT && c->heat_on) o->der[NX - 1] = (R * o->i * o->i - T / c->Rth) / c->Cth;
     o->psi = psi;
-    o->F = f;
-    o->ieddy = G * o->dpsi;
+    o->F = f + c->fx[FX_FFR];
+    o->ieddy = G * o->dpsi + sik;
     o->i_f = i_f;
+    o->ih = ih;
+    o->T = T;
 }
 
 static int me_mode(const Inst *in)
@@ -440,7 +665,31 @@ static fmi2Status me_prepare(Inst *in, const char *where)
     if (!is_finite(u)) { say(in, fmi2Error, "%s at t = %.17g s: input %s = %.17g is not finite", where, c->me_time_s, drive_name(c), u); return fmi2Error; }
     if (!is_finite(c->x_m)) { say(in, fmi2Error, "%s at t = %.17g s: input x_m = %.17g is not finite", where, c->me_time_s, c->x_m); return fmi2Error; }
     if (c->dirty && !apply_params(in, 0)) return fmi2Error;
+    if (!c->voltage && c->G == 0.0 && c->lad_on) {
+        say(in, fmi2Error, "%s: model exchange does not support current mode with G_eddy_S = 0 and the eddy ladder on "
+            "(a differential-algebraic system); use co-simulation, G_eddy_S > 0 or eddy_ladder_on = false", where);
+        return fmi2Error;
+    }
     return fmi2OK;
+}
+
+/* Event update of the discrete effect states at an accepted model-exchange point (model.py updates
+ * them after every sub-step / step): hysteresis current from the play operators at the current Psi,
+ * friction force from the change of x since the last event. */
+static void me_discrete(Core *c)
+{
+    MeOut o;
+    if (!SOL_HAS_FX) return;
+    me_eval(c, &o);
+    if (c->hyst_on) c->fx[FX_IH] = c->gain * play_step(c->fx + FX_PLAY, o.psi);
+    if (c->fric_on) {
+        double dx = c->x_m - c->fx[FX_XPREV];
+        if (dx != 0.0) {
+            double target = dx > 0.0 ? c->fricN : -c->fricN;
+            c->fx[FX_FFR] = target + (c->fx[FX_FFR] - target) * exp(-fabs(dx) / c->presl);
+        }
+    }
+    c->fx[FX_XPREV] = c->x_m;
 }
 
 /* Update the excursion flags at an accepted model-exchange point (logs once per excursion). */
@@ -470,6 +719,16 @@ static void reset_core(Core *c)
     c->c = c->voltage ? c->R : 1.0;
     c->hsub = SOL_HSUB_DEFAULT;
     c->inv_hsub = 1.0 / SOL_HSUB_DEFAULT;
+    c->hyst_set = SOL_HYST_ON_DEFAULT;
+    c->lad_set = SOL_LAD_ON_DEFAULT;
+    c->heat_set = SOL_HEAT_ON_DEFAULT;
+    c->fric_set = SOL_FRIC_ON_DEFAULT;
+    c->gain_set = SOL_HYST_GAIN_DEFAULT;
+    c->Cth_set = SOL_C_TH_J_PER_K_DEFAULT;
+    c->Rth_set = SOL_R_TH_K_PER_W_DEFAULT;
+    c->alpha_set = SOL_ALPHA_PER_K_DEFAULT;
+    c->fricN_set = SOL_FRICTION_N_DEFAULT;
+    c->presl_set = SOL_PRESLIDING_M_DEFAULT;
     c->dirty = 1;
     c->ready = 0;
     c->s[ST_LAYOUT] = STATE_LAYOUT;
@@ -612,9 +871,30 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
         case VR_G: value[k] = c->G_set; break;
         case VR_PSI0: value[k] = c->Psi0_set; break;
         case VR_HSUB: value[k] = c->hsub_set; break;
-        case VR_PSI_STATE: value[k] = me ? c->me_psi_Wb : c->s[ST_PSI]; break;
-        case VR_DER_PSI_STATE: value[k] = me ? o.der : c->s[ST_DPSI]; break;
+#if SOL_HAS_FX
+        case VR_IHYST: value[k] = me ? o.ih : c->fx[FX_IH]; break;
+        case VR_TRISE: value[k] = me ? o.T : c->fx[FX_T]; break;
+        case VR_HYST_GAIN: value[k] = c->gain_set; break;
+        case VR_CTH: value[k] = c->Cth_set; break;
+        case VR_RTH: value[k] = c->Rth_set; break;
+        case VR_ALPHA: value[k] = c->alpha_set; break;
+        case VR_FRIC_N: value[k] = c->fricN_set; break;
+        case VR_PRESL: value[k] = c->presl_set; break;
+#endif
         default:
+            if (vr[k] >= VR_PSI_STATE && vr[k] < VR_PSI_STATE + 2 * NX) {
+                /* model-exchange locals: states, then derivatives. In co-simulation: Psi and the effect
+                 * states of the last step; derivatives: dPsi/dt of the last step, 0 for the others. */
+                int kk = (int)(vr[k] - VR_PSI_STATE);
+                if (kk < NX) {
+                    double xs = kk == 0 ? c->me_psi_Wb : kk < ME_T ? c->me_lad[kk - ME_LAD] : c->me_T;
+                    double cs = kk == 0 ? c->s[ST_PSI] : kk < ME_T ? c->fx[FX_LAD + kk - ME_LAD] : c->fx[FX_T];
+                    value[k] = me ? xs : cs;
+                } else {
+                    value[k] = me ? o.der[kk - NX] : kk == NX ? c->s[ST_DPSI] : 0.0;
+                }
+                break;
+            }
             say(in, fmi2Error, "fmi2GetReal: no Real variable with value reference %u", (unsigned)vr[k]);
             return fmi2Error;
         }
@@ -644,11 +924,19 @@ fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
     size_t k;
     if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
     for (k = 0; k < nvr; k++) {
-        if (vr[k] != VR_OOM) {
+        const Core *c = &in->core;
+        switch (vr[k]) {
+        case VR_OOM: value[k] = (c->s[ST_EXC_PSI] != 0.0 || c->s[ST_EXC_X] != 0.0) ? fmi2True : fmi2False; break;
+#if SOL_HAS_FX
+        case VR_HYST_ON: value[k] = c->hyst_set ? fmi2True : fmi2False; break;
+        case VR_LAD_ON: value[k] = c->lad_set ? fmi2True : fmi2False; break;
+        case VR_HEAT_ON: value[k] = c->heat_set ? fmi2True : fmi2False; break;
+        case VR_FRIC_ON: value[k] = c->fric_set ? fmi2True : fmi2False; break;
+#endif
+        default:
             say(in, fmi2Error, "fmi2GetBoolean: no Boolean variable with value reference %u", (unsigned)vr[k]);
             return fmi2Error;
         }
-        value[k] = (in->core.s[ST_EXC_PSI] != 0.0 || in->core.s[ST_EXC_X] != 0.0) ? fmi2True : fmi2False;
     }
     return fmi2OK;
 }
@@ -688,6 +976,26 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
             if (vr[k] == VR_PSI0) c->Psi0_set = v; else c->hsub_set = v;
             c->dirty = 1;
             break;
+#if SOL_HAS_FX
+        case VR_HYST_GAIN: c->gain_set = v; c->dirty = 1; break;   /* tunable */
+        case VR_FRIC_N: c->fricN_set = v; c->dirty = 1; break;     /* tunable */
+        case VR_CTH:
+        case VR_RTH:
+        case VR_ALPHA:
+        case VR_PRESL:
+            if (!is_fixed_phase(in)) {
+                say(in, fmi2Error, "fmi2SetReal: %s is a fixed parameter; set it before fmi2ExitInitializationMode",
+                    vr[k] == VR_CTH ? "C_th_J_per_K" : vr[k] == VR_RTH ? "R_th_K_per_W"
+                    : vr[k] == VR_ALPHA ? "alpha_per_K" : "presliding_m");
+                return fmi2Error;
+            }
+            if (vr[k] == VR_CTH) c->Cth_set = v;
+            else if (vr[k] == VR_RTH) c->Rth_set = v;
+            else if (vr[k] == VR_ALPHA) c->alpha_set = v;
+            else c->presl_set = v;
+            c->dirty = 1;
+            break;
+#endif
         default:
             say(in, fmi2Error, "fmi2SetReal: value reference %u is not a Real input or parameter", (unsigned)vr[k]);
             return fmi2Error;
@@ -724,10 +1032,26 @@ fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
     Inst *in = (Inst *)comp;
-    (void)vr;
-    (void)value;
-    if (in == NULL) return fmi2Error;
-    if (nvr) { say(in, fmi2Error, "fmi2SetBoolean: this FMU has no Boolean inputs or parameters"); return fmi2Error; }
+    size_t k;
+    if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
+    for (k = 0; k < nvr; k++) {
+        Core *c = &in->core;
+        int on = value[k] ? 1 : 0;
+        if (!SOL_HAS_FX || (vr[k] != VR_HYST_ON && vr[k] != VR_LAD_ON && vr[k] != VR_HEAT_ON && vr[k] != VR_FRIC_ON)) {
+            say(in, fmi2Error, "fmi2SetBoolean: value reference %u is not a Boolean parameter", (unsigned)vr[k]);
+            return fmi2Error;
+        }
+        if (!is_fixed_phase(in)) {
+            say(in, fmi2Error, "fmi2SetBoolean: the effect switches are fixed; set them before "
+                "fmi2ExitInitializationMode");
+            return fmi2Error;
+        }
+        if (vr[k] == VR_HYST_ON) c->hyst_set = on;
+        else if (vr[k] == VR_LAD_ON) c->lad_set = on;
+        else if (vr[k] == VR_HEAT_ON) c->heat_set = on;
+        else c->fric_set = on;
+        c->dirty = 1;
+    }
     return fmi2OK;
 }
 
@@ -878,7 +1202,8 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     }
     if (!is_finite(u)) { say(in, fmi2Error, "doStep at t = %.17g s: input %s = %.17g is not finite", t, drive_name(c), u); return fmi2Error; }
     if (!is_finite(c->x_m)) { say(in, fmi2Error, "doStep at t = %.17g s: input x_m = %.17g is not finite", t, c->x_m); return fmi2Error; }
-    sol_step(in, t, h);
+    if (c->fx_on) sol_step_fx(in, t, h);
+    else sol_step(in, t, h);
     return fmi2OK;
 }
 
@@ -938,6 +1263,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component comp, fmi2EventInfo *info)
     if (in == NULL || info == NULL) return fmi2Error;
     if (in->phase != PH_EVENT) { say(in, fmi2Error, "fmi2NewDiscreteStates outside event mode"); return fmi2Error; }
     if (me_prepare(in, "fmi2NewDiscreteStates") != fmi2OK) return fmi2Error;
+    me_discrete(&in->core);
     me_flags(in);
     info->newDiscreteStatesNeeded = fmi2False;
     info->terminateSimulation = fmi2False;
@@ -968,6 +1294,8 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp, fmi2Boolean noSetFMUS
     if (me_prepare(in, "fmi2CompletedIntegratorStep") != fmi2OK) return fmi2Error;
     me_flags(in);
     in->core.s[ST_TIME] = in->core.me_time_s;
+    /* hysteresis and friction are discrete states: a step event updates them (fmi2NewDiscreteStates) */
+    if (in->core.hyst_on || in->core.fric_on) *enterEventMode = fmi2True;
     return fmi2OK;
 }
 
@@ -983,9 +1311,13 @@ fmi2Status fmi2SetTime(fmi2Component comp, fmi2Real time)
 fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real x[], size_t nx)
 {
     Inst *in = (Inst *)comp;
-    if (in == NULL || x == NULL || nx != 1) return fmi2Error;
-    if (!is_finite(x[0])) { say(in, fmi2Error, "fmi2SetContinuousStates: psi_state_Wb = %.17g is not finite", x[0]); return fmi2Error; }
+    size_t k;
+    if (in == NULL || x == NULL || nx != NX) return fmi2Error;
+    for (k = 0; k < nx; k++)
+        if (!is_finite(x[k])) { say(in, fmi2Error, "fmi2SetContinuousStates: state %u = %.17g is not finite", (unsigned)k, x[k]); return fmi2Error; }
     in->core.me_psi_Wb = x[0];
+    for (k = ME_LAD; k < ME_T; k++) in->core.me_lad[k - ME_LAD] = x[k];
+    if (NX > ME_T) in->core.me_T = x[NX - 1];
     return fmi2OK;
 }
 
@@ -993,11 +1325,12 @@ fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real derivatives[], size_t
 {
     Inst *in = (Inst *)comp;
     MeOut o;
-    if (in == NULL || derivatives == NULL || nx != 1) return fmi2Error;
+    size_t k;
+    if (in == NULL || derivatives == NULL || nx != NX) return fmi2Error;
     if (!in->core.ready) { say(in, fmi2Error, "fmi2GetDerivatives before a successful initialization"); return fmi2Error; }
     if (me_prepare(in, "fmi2GetDerivatives") != fmi2OK) return fmi2Error;
     me_eval(&in->core, &o);
-    derivatives[0] = o.der;
+    for (k = 0; k < nx; k++) derivatives[k] = o.der[k];
     return fmi2OK;
 }
 
@@ -1010,14 +1343,19 @@ fmi2Status fmi2GetEventIndicators(fmi2Component comp, fmi2Real eventIndicators[]
 fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx)
 {
     Inst *in = (Inst *)comp;
-    if (in == NULL || x == NULL || nx != 1) return fmi2Error;
+    size_t k;
+    if (in == NULL || x == NULL || nx != NX) return fmi2Error;
     x[0] = in->core.me_psi_Wb;
+    for (k = ME_LAD; k < ME_T; k++) x[k] = in->core.me_lad[k - ME_LAD];
+    if (NX > ME_T) x[NX - 1] = in->core.me_T;
     return fmi2OK;
 }
 
 fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component comp, fmi2Real x_nominal[], size_t nx)
 {
-    if (comp == NULL || x_nominal == NULL || nx != 1) return fmi2Error;
+    size_t k;
+    if (comp == NULL || x_nominal == NULL || nx != NX) return fmi2Error;
     x_nominal[0] = SOL_PSI_MAX;
+    for (k = 1; k < nx; k++) x_nominal[k] = 1.0;   /* ladder currents [A], temperature rise [K] */
     return fmi2OK;
 }
