@@ -59,6 +59,7 @@ enum { FX_T, FX_FFR, FX_XPREV, FX_IH, FX_LAD };
 #define FX_PLAY (FX_LAD + SOL_N_LAD)
 #define N_FX (FX_PLAY + SOL_N_PLAY)
 #define LAD_ALLOC (SOL_N_LAD > 0 ? SOL_N_LAD : 1)
+#define PLAY_ALLOC (SOL_N_PLAY > 0 ? SOL_N_PLAY : 1)
 
 /* Value references (= positions in solenoid_fmu.fmu.interface_for(tables): VARIABLES, then
  * EFFECT_VARIABLES when the maps carry effects; then the model-exchange locals). */
@@ -606,8 +607,11 @@ typedef struct { double i, U, F, psi, dpsi, ieddy, der[NX]; int pc, xc; double i
  *   current, G > 0:   e = (i - i_f - i_h - sum i_k) / G,               U = R i + e
  *   current, G = 0 (no ladder): i_f(Psi, x) = i - i_h algebraic, e = 0, U = R i
  *   der(i_k) = (G_k e - i_k) / tau_k,   der(T) = (R i^2 - T / R_th) / C_th
- * i_h (hysteresis) and the friction force are discrete states, updated at events (see
- * fmi2NewDiscreteStates). */
+ * Hysteresis and friction are rate independent: i_h is the play operator moved from its committed
+ * state to the current Psi, F_fr the Dahl force moved from the committed (F_fr, x) to the current x;
+ * both are exact for monotone Psi and x between accepted steps and continuous in the states, so no
+ * events are needed. fmi2CompletedIntegratorStep commits them (me_commit). Current mode with G = 0
+ * (no ladder) solves i_f(Psi, x) = i - i_h with the committed i_h (one accepted step behind). */
 static void me_eval(const Core *c, MeOut *o)
 {
     const double u = c->voltage ? c->u_V : c->i_A, G = c->G, pm = SOL_PSI_MAX;
@@ -629,6 +633,11 @@ static void me_eval(const Core *c, MeOut *o)
         if (psi > pm) psi = pm;
         else if (psi < -pm) psi = -pm;
         eval3(psi, j, w, &i_f, &d, &f);
+        if (c->hyst_on) {
+            double plays[PLAY_ALLOC];
+            memcpy(plays, c->fx + FX_PLAY, sizeof plays);
+            ih = c->gain * play_step(plays, psi);
+        }
         if (c->voltage) {
             o->dpsi = (u - R * (i_f + ih + sik)) / (1.0 + R * G);
             o->i = i_f + ih + G * o->dpsi + sik;
@@ -645,6 +654,10 @@ static void me_eval(const Core *c, MeOut *o)
     if (SOL_FX_HEAT && c->heat_on) o->der[NX - 1] = (R * o->i * o->i - T / c->Rth) / c->Cth;
     o->psi = psi;
     o->F = f + c->fx[FX_FFR];
+    if (c->fric_on && c->x_m != c->fx[FX_XPREV]) {
+        double dx = c->x_m - c->fx[FX_XPREV], target = dx > 0.0 ? c->fricN : -c->fricN;
+        o->F = f + (target + (c->fx[FX_FFR] - target) * exp(-fabs(dx) / c->presl));
+    }
     o->ieddy = G * o->dpsi + sik;
     o->i_f = i_f;
     o->ih = ih;
@@ -673,10 +686,10 @@ static fmi2Status me_prepare(Inst *in, const char *where)
     return fmi2OK;
 }
 
-/* Event update of the discrete effect states at an accepted model-exchange point (model.py updates
- * them after every sub-step / step): hysteresis current from the play operators at the current Psi,
- * friction force from the change of x since the last event. */
-static void me_discrete(Core *c)
+/* Commit the hysteresis and friction memory at an accepted model-exchange point (see me_eval): the
+ * play operators move to the current Psi, the friction force and x_prev to the current x. The
+ * outputs do not change by this (the operators are idempotent), so no event is needed. */
+static void me_commit(Core *c)
 {
     MeOut o;
     if (!SOL_HAS_FX) return;
@@ -1263,7 +1276,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component comp, fmi2EventInfo *info)
     if (in == NULL || info == NULL) return fmi2Error;
     if (in->phase != PH_EVENT) { say(in, fmi2Error, "fmi2NewDiscreteStates outside event mode"); return fmi2Error; }
     if (me_prepare(in, "fmi2NewDiscreteStates") != fmi2OK) return fmi2Error;
-    me_discrete(&in->core);
+    me_commit(&in->core);
     me_flags(in);
     info->newDiscreteStatesNeeded = fmi2False;
     info->terminateSimulation = fmi2False;
@@ -1294,8 +1307,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp, fmi2Boolean noSetFMUS
     if (me_prepare(in, "fmi2CompletedIntegratorStep") != fmi2OK) return fmi2Error;
     me_flags(in);
     in->core.s[ST_TIME] = in->core.me_time_s;
-    /* hysteresis and friction are discrete states: a step event updates them (fmi2NewDiscreteStates) */
-    if (in->core.hyst_on || in->core.fric_on) *enterEventMode = fmi2True;
+    me_commit(&in->core);
     return fmi2OK;
 }
 
