@@ -145,13 +145,3 @@ def test_effect_state_round_trip_and_bad_effects(tmp_path):
     with pytest.raises(m.ModelMapsError, match="tau_s"):
         _maps_with_effects(tmp_path / "bad", {"eddy_ladder": {"G_S": [1e-3], "tau_s": [-1.0]}}).meta  # noqa: B018
         m.SolenoidModel(_maps_with_effects(tmp_path / "bad2", {"eddy_ladder": {"G_S": [1e-3], "tau_s": [-1.0]}}))
-
-
-def test_native_backend_refuses_maps_with_effects_clearly(tmp_path):
-    from solenoid_fmu.errors import FmuBuildError
-    from solenoid_fmu.fmu import build_fmu
-
-    tab = _maps_with_effects(tmp_path, {"friction": {"force_N": 1.0, "presliding_m": 1e-5}})
-    with pytest.raises(FmuBuildError, match="friction.*--backend python"):
-        build_fmu(tab.where, tmp_path / "x.fmu", backend="c")
-    assert not (tmp_path / "x.fmu").exists()

@@ -374,10 +374,10 @@ def test_me_with_cvode_converges_to_the_model(fmu_path, tab, mode, u, G):
 
 
 # -- the plain C host and valgrind -----------------------------------------------------------------
-def _run_host(host, unzipped, md, csv, n_long, prefix=()):
+def _run_host(host, unzipped, md, csv, n_long, prefix=(), suffix=()):
     lib = Path(unzipped) / "binaries" / "linux64" / f"{F.MODEL_IDENTIFIER}.so"
-    proc = subprocess.run([*prefix, str(host), str(lib), md.guid, str(csv), str(n_long)], capture_output=True,
-                          text=True, timeout=300)
+    proc = subprocess.run([*prefix, str(host), str(lib), md.guid, str(csv), str(n_long), *suffix],
+                          capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.strip().splitlines()[-1] == "ok all"
     return proc

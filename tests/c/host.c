@@ -1,7 +1,12 @@
 /*
  * Plain C host of the native solenoid FMU: dlopen, no Python in the process.
  *
- *   host LIB.so GUID OUT.csv N_LONG
+ *   host LIB.so GUID OUT.csv N_LONG [fx]
+ *
+ * With "fx" the FMU carries the effect variables (solenoid_fmu.fmu.EFFECT_VARIABLES after the base
+ * ones) and every instance switches all four effects on (hysteresis, eddy ladder, heating, friction)
+ * before initialization; the long voltage run then also moves x (friction), and prints
+ * ns_per_step for the model with all effects.
  *
  * 1. ramp: current-driven 10 A/s ramp from 0 A (h = 1e-4 s, 2000 steps, x = 1 mm); writes
  *    OUT.csv (t_s, i_out_A, U_out_V, F_N, psi_Wb, dpsi_dt_V, i_eddy_A; %.17g) for the test to
@@ -29,6 +34,9 @@
 #include "fmi2Functions.h"
 
 enum { VR_U = 0, VR_I, VR_X, VR_I_OUT, VR_U_OUT, VR_F, VR_PSI, VR_DPSI, VR_IEDDY, VR_OOM, VR_R, VR_G, VR_DRIVE };
+/* effect switches (hysteresis_on, eddy_ladder_on, heating_on, friction_on) of an FMU with effects */
+static const fmi2ValueReference FX_SWITCH_VR[4] = {17, 19, 20, 24};
+static int FX = 0;
 #define NOUT 6
 static const fmi2ValueReference OUT_VR[NOUT] = {VR_I_OUT, VR_U_OUT, VR_F, VR_PSI, VR_DPSI, VR_IEDDY};
 
@@ -43,6 +51,7 @@ static struct {
     fmi2SetRealTYPE *setReal;
     fmi2GetRealTYPE *getReal;
     fmi2SetIntegerTYPE *setInteger;
+    fmi2SetBooleanTYPE *setBoolean;
     fmi2DoStepTYPE *doStep;
     fmi2GetFMUstateTYPE *getState;
     fmi2SetFMUstateTYPE *setState;
@@ -95,6 +104,10 @@ static fmi2Component start(const char *name, int mode, double u0, double x, doub
     CHECK(F.setupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK, "setupExperiment");
     CHECK(F.enterInit(c) == fmi2OK, "enterInitializationMode");
     CHECK(F.setInteger(c, &vr_d, 1, &m) == fmi2OK, "set drive_mode");
+    if (FX) {
+        const fmi2Boolean on[4] = {fmi2True, fmi2True, fmi2True, fmi2True};
+        CHECK(F.setBoolean(c, FX_SWITCH_VR, 4, on) == fmi2OK, "switch the effects on");
+    }
     if (G >= 0.0) CHECK(F.setReal(c, &vr_g, 1, &G) == fmi2OK, "set G_eddy_S");
     CHECK(F.setReal(c, vr_in, 2, in) == fmi2OK, "set inputs");
     CHECK(F.exitInit(c) == fmi2OK, "exitInitializationMode");
@@ -124,7 +137,11 @@ int main(int argc, char **argv)
     double out[NOUT], h = 1e-4, x = 1e-3;
     int k;
     long n_long;
-    if (argc != 5) { fprintf(stderr, "usage: host LIB.so GUID OUT.csv N_LONG\n"); return 2; }
+    if (argc != 5 && !(argc == 6 && strcmp(argv[5], "fx") == 0)) {
+        fprintf(stderr, "usage: host LIB.so GUID OUT.csv N_LONG [fx]\n");
+        return 2;
+    }
+    FX = argc == 6;
     GUID = argv[2];
     n_long = atol(argv[4]);
     lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
@@ -139,6 +156,7 @@ int main(int argc, char **argv)
     *(void **)&F.setReal = sym(lib, "fmi2SetReal");
     *(void **)&F.getReal = sym(lib, "fmi2GetReal");
     *(void **)&F.setInteger = sym(lib, "fmi2SetInteger");
+    *(void **)&F.setBoolean = sym(lib, "fmi2SetBoolean");
     *(void **)&F.doStep = sym(lib, "fmi2DoStep");
     *(void **)&F.getState = sym(lib, "fmi2GetFMUstate");
     *(void **)&F.setState = sym(lib, "fmi2SetFMUstate");
@@ -191,6 +209,10 @@ int main(int argc, char **argv)
         CHECK(F.setupExperiment(a, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK, "setupExperiment after reset");
         CHECK(F.enterInit(a) == fmi2OK, "enterInitializationMode after reset");
         CHECK(F.setInteger(a, &vr_d, 1, &m) == fmi2OK, "drive after reset");
+        if (FX) {
+            const fmi2Boolean on[4] = {fmi2True, fmi2True, fmi2True, fmi2True};
+            CHECK(F.setBoolean(a, FX_SWITCH_VR, 4, on) == fmi2OK, "effects after reset");
+        }
         CHECK(F.setReal(a, vr_in, 2, in) == fmi2OK, "inputs after reset");
         CHECK(F.exitInit(a) == fmi2OK, "exitInitializationMode after reset");
     }
@@ -260,7 +282,7 @@ int main(int argc, char **argv)
         for (k = 0; k < n_long; k++) {
             u = (k / 500) % 2 ? 0.0 : 24.0;
             in[0] = u;
-            in[1] = x;
+            in[1] = FX ? x + 0.3e-3 * sin(2e-3 * k) : x;   /* with effects: a moving armature (friction) */
             F.setReal(c, vr_in, 2, in);
             if (F.doStep(c, k * h, h, fmi2True) != fmi2OK) CHECK(0, "long run doStep");
             F.getReal(c, vr_out, 3, y);
