@@ -11,12 +11,16 @@ same maps in this run. Printed:
 - the C host (``tests/c/host.c``, dlopen, no Python in the process): ns per communication
   cycle (set 2 inputs, ``fmi2DoStep`` at 1e-4 s, get 3 outputs), 1e6 voltage-driven steps;
   goal under 1 us; and 1e6 current-driven steps with ``G_eddy = 0`` (the Newton path);
+- the same C host on a native FMU of the same maps plus all four effect sub-models switched on
+  (:data:`EFFECTS`: 3 play operators with a shape table, a 2-section eddy ladder, heating,
+  friction with a moving armature): ns per cycle and the ratio to the plain model;
 - through fmpy (ctypes) for the native and the pythonfmu FMU, ``doStep`` alone and the full cycle,
   timed in alternating blocks, minimum over the blocks; the ratio pythonfmu / native.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -29,13 +33,42 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_fmu import _block, _load  # noqa: E402  (sibling benchmark script)
 
+#: Effect sub-models of the "all effects" FMU (maps.json ``effects``; values of the order the improve
+#: loop identifies on the demo campaign).
+EFFECTS = {
+    "hysteresis": {"thresholds": [0.01, 0.03, 0.06], "weights": [2.0, 1.0, 0.5],
+                   "shape": {"b_nodes": [0.0, 0.2, 0.4], "g_nodes": [1.0, 1.5, 0.5]}},
+    "eddy_ladder": {"G_S": [3e-3, 2e-3], "tau_s": [3e-4, 3e-3]},
+    "heating": {"C_th_J_per_K": 30.0, "R_th_K_per_W": 5.0, "alpha_per_K": 0.00393},
+    "friction": {"force_N": 2.5, "presliding_m": 2e-5},
+}
+
+
+def _host_ns(host, fmu, tmp, n_host, runs, *extra):
+    """Run tests/c/host.c on an FMU ``runs`` times; (ns per voltage cycle, ns per current G=0 cycle) lists."""
+    import fmpy
+
+    from solenoid_fmu.fmu import MODEL_IDENTIFIER
+
+    unzip = Path(fmpy.extract(str(fmu)))
+    md = fmpy.read_model_description(str(fmu))
+    lib = unzip / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so"
+    ns, ns_g0 = [], []
+    for _ in range(runs):
+        proc = subprocess.run([str(host), str(lib), md.guid, str(tmp / "ramp.csv"), str(n_host), *extra],
+                              capture_output=True, text=True, check=True)
+        ns.append(float(re.search(r"ns_per_step ([0-9.]+)", proc.stdout).group(1)))
+        ns_g0.append(float(re.search(r"ns_per_step_current_G0 ([0-9.]+)", proc.stdout).group(1)))
+    shutil.rmtree(unzip, ignore_errors=True)
+    return ns, ns_g0
+
 
 def main(argv: list[str]) -> int:
     import fmpy
 
     from solenoid_fmu import fmu_c
     from solenoid_fmu import model as M
-    from solenoid_fmu.fmu import MODEL_IDENTIFIER, build_fmu
+    from solenoid_fmu.fmu import build_fmu
 
     h = 1e-4
     n_block, n_rep, n_host = 2000, 15, 1_000_000
@@ -54,20 +87,29 @@ def main(argv: list[str]) -> int:
         c_fmu = build_fmu(maps_dir, tmp / "native.fmu", backend="c")
         py_fmu = build_fmu(maps_dir, tmp / "python.fmu", backend="python")
 
+        # the same maps with all four effect sub-models
+        fx_dir = tmp / "with_effects"
+        fx_dir.mkdir()
+        shutil.copyfile(maps_dir / "maps.npz", fx_dir / "maps.npz")
+        meta = json.loads((maps_dir / "maps.json").read_text(encoding="utf-8"))
+        meta["effects"] = EFFECTS
+        (fx_dir / "maps.json").write_text(json.dumps(meta), encoding="utf-8")
+        fx_fmu = build_fmu(fx_dir, tmp / "native_fx.fmu", backend="c")
+
         # -- plain C host ------------------------------------------------------------------------
         unzip = Path(fmpy.extract(str(c_fmu)))
         host = tmp / "host"
         subprocess.run([fmu_c.find_compiler(), "-std=c99", "-O2", f"-I{unzip}/sources", "-o", str(host),
                         str(ROOT / "tests" / "c" / "host.c"), "-ldl", "-lm"], check=True)
-        md = fmpy.read_model_description(str(c_fmu))
-        lib = unzip / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so"
-        host_ns, host_ns_g0 = [], []
-        for _ in range(3):
-            proc = subprocess.run([str(host), str(lib), md.guid, str(tmp / "ramp.csv"), str(n_host)],
-                                  capture_output=True, text=True, check=True)
-            host_ns.append(float(re.search(r"ns_per_step ([0-9.]+)", proc.stdout).group(1)))
-            host_ns_g0.append(float(re.search(r"ns_per_step_current_G0 ([0-9.]+)", proc.stdout).group(1)))
         shutil.rmtree(unzip, ignore_errors=True)
+        host_ns, host_ns_g0, fx_ns, fx_ns_g0 = [], [], [], []
+        for _ in range(3):  # alternate plain and effects runs
+            a, b = _host_ns(host, c_fmu, tmp, n_host, 1)
+            host_ns += a
+            host_ns_g0 += b
+            a, b = _host_ns(host, fx_fmu, tmp, n_host, 1, "fx")
+            fx_ns += a
+            fx_ns_g0 += b
 
         # -- both FMUs through fmpy --------------------------------------------------------------
         tab = M.load_tables(maps_dir)
@@ -102,6 +144,10 @@ def main(argv: list[str]) -> int:
     print(f"  native FMU   : {host_min:8.1f} ns per cycle   (goal < 1000 ns; runs: "
           + ", ".join(f"{v:.1f}" for v in host_ns) + ")")
     print(f"  current mode, G_eddy = 0 (Newton solve per step): {min(host_ns_g0):8.1f} ns per cycle")
+    print(f"  all four effects on (3 plays, 2 ladder sections, heating, friction): {min(fx_ns):8.1f} ns per cycle "
+          f"(ratio to the plain model {min(fx_ns) / host_min:.2f}; runs: " + ", ".join(f"{v:.1f}" for v in fx_ns) + ")")
+    print(f"  all effects, current mode, G_eddy = 0 (ladder: ROS2 with m = 0): {min(fx_ns_g0):8.1f} ns per cycle "
+          f"(ratio {min(fx_ns_g0) / min(host_ns_g0):.2f})")
     print(f"through fmpy (ctypes), min over {n_rep} blocks of {n_block}:")
     print(f"  doStep       : native {ds_c * 1e6:7.2f} us   pythonfmu {ds_p * 1e6:7.2f} us   "
           f"ratio {ds_p / ds_c:6.1f}")
