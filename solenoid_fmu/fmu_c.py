@@ -18,6 +18,15 @@ with ``G_eddy = 0``, the same excursion flags and messages); ``fmi2DoStep`` allo
 A NaN or infinite input, ``R_ohm <= 0`` or ``G_eddy_S < 0`` is logged and returns ``fmi2Error``
 with the state unchanged.
 
+Effect sub-models (maps.json ``effects``; :data:`solenoid_fmu.fmu.EFFECT_VARIABLES`): the effect
+data (play thresholds, weights and shape table; eddy-ladder ``G_k``, ``tau_k``) become constant
+arrays in ``solenoid_maps.h`` (:func:`_effects_header`); switches and scalars are FMU parameters
+with the defaults of :class:`solenoid_fmu.model.SolenoidModel`; the outputs ``i_hyst_A`` and
+``T_rise_K`` exist. Co-simulation reproduces ``SolenoidModel._step_fx`` step for step (1e-9, in
+practice bit for bit); the effect states are part of the FMU state. The variable list is
+:func:`solenoid_fmu.fmu.interface_for` (value references = positions), then the model-exchange
+locals of :func:`me_variables`.
+
 Model exchange (same binary, same variables): the continuous state is the local
 ``psi_state_Wb`` [Wb] with derivative ``der(psi_state_Wb)`` [V] (paper eqs. 1-2 solved for
 dPsi/dt: voltage mode ``(U - R i_f) / (1 + R G)``, current mode ``(i - i_f) / G``). Current mode
@@ -30,6 +39,16 @@ where the outputs are held from the last step, this is a conservative superset).
 :func:`finish_model_description` runs after :func:`solenoid_fmu.fmu.finalize_model_description`
 and adds what model exchange needs (element, the two local variables, ``Derivatives``,
 dependencies, source file lists).
+
+Model exchange with effects: the continuous states are ``psi_state_Wb``, one
+``ladder_state_<k>_A`` per eddy-ladder section and ``T_state_K`` (when the maps carry heating), each
+with its ``der(...)`` local (``tau_k di_k/dt = G_k dPsi/dt - i_k``; ``C_th dT/dt = R(T) i^2 - T /
+R_th`` with the instantaneous current; a switched-off effect has derivative 0). Hysteresis and
+friction are rate independent: ME evaluates them from the memory committed at the last accepted
+step (``fmi2CompletedIntegratorStep``, ``fmi2NewDiscreteStates``) moved to the current Psi and x,
+which is continuous in the states, exact for monotone motion between accepted steps and needs no
+events. Current mode with ``G_eddy_S = 0`` and the ladder on is a differential-algebraic system and
+is refused in model exchange (error at initialization); co-simulation supports it.
 """
 
 from __future__ import annotations
@@ -58,6 +77,7 @@ __all__ = [
     "C_STATE_NAMES",
     "FMI_HEADERS",
     "ME_VARIABLES",
+    "me_variables",
     "build_c_fmu",
     "compile_shared_library",
     "finish_model_description",
@@ -73,8 +93,8 @@ FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 #: Compiler flags of the binary (gcc/clang syntax).
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror")
 #: The state layout and parameters solenoid_fmu/c/solenoid_fmu.c implements (enum ST_*, struct Core).
-#: :func:`build_c_fmu` refuses to build when :mod:`solenoid_fmu.model` has moved on (new effects):
-#: the C code must then gain the same states and parameters first.
+#: :func:`build_c_fmu` refuses to build when :mod:`solenoid_fmu.model` has moved on (new states,
+#: parameters or effects): the C code must then gain the same states and parameters first.
 C_STATE_LAYOUT = 1
 C_STATE_NAMES = ("state_layout", "time_s", "psi_Wb", "initialized", "excursion_psi", "excursion_x",
                  "excursion_extrapolated", "out_i_A", "out_U_V", "out_F_N", "out_dpsi_dt_V", "out_i_eddy_A")
@@ -413,15 +433,18 @@ def build_c_fmu(maps_dir, dest, tables: _model.MapTables) -> str:
 _DOC_PY = "<li>The Python backend needs a Python 3 interpreter with numpy on the machine that runs the FMU.</li>"
 _DOC_C = ("<li>Native FMU (generated C, no Python at run time): co-simulation and model exchange in one "
           "binary; <code>sources/</code> builds it for other platforms (CMakeLists.txt). Model exchange: "
-          "state psi_state_Wb; instantaneous outputs; current mode with G_eddy_S = 0 is algebraic (no "
-          "continuous state, dpsi_dt_V = 0, U_out_V = R i).</li>")
+          "state psi_state_Wb (with effects also the eddy-ladder currents and the temperature rise); "
+          "instantaneous outputs; current mode with G_eddy_S = 0 is algebraic (no continuous state, "
+          "dpsi_dt_V = 0, U_out_V = R i); with effects, current mode with G_eddy_S = 0 and the eddy "
+          "ladder on is co-simulation only.</li>")
 
 
 def finish_model_description(fmu_path, tables: _model.MapTables) -> None:
     """Add model exchange to a finalized description of a native FMU (in place).
 
     Adds the ``ModelExchange`` element, ``SourceFiles`` in both interfaces, the local variables of
-    :data:`ME_VARIABLES` (value references 15, 16), ``ModelStructure/Derivatives``, the
+    :func:`me_variables` (value references after the interface: 15, 16 without effects),
+    ``ModelStructure/Derivatives``, the
     model-exchange dependencies of the outputs and the two new initial unknowns; updates the
     documentation page for the native backend.
     """

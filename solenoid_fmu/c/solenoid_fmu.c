@@ -22,10 +22,14 @@
  * (an FMU gets no di/dt in model exchange). |Psi| at psi_max: the derivative is held at 0 while it
  * points outwards (the state does not wind up), as in co-simulation.
  *
- * Extension point: effects that add states (hysteresis, heating, eddy ladder, friction) append
- * entries to the state vector (enum ST_* below, mirroring model.STATE_NAMES and STATE_LAYOUT),
- * parameters to the Core struct and the VR_* table, and their update to sol_step(); the FMU state
- * (get/set/serialize) copies Core as a whole, so it follows automatically.
+ * Effect sub-models (maps.json effects; model.py _step_fx): hysteresis (play operators on Psi),
+ * eddy ladder (R-L sections beside G), heating (R(T), first-order thermal model) and friction (Dahl in
+ * x), switched by Boolean parameters; their data are the SOL_LAD_* / SOL_PLAY_* / SOL_SHAPE_* arrays
+ * of solenoid_maps.h and their states Core.fx (model.py EFFECT_STATE_NAMES, ladder_k, play_k). With
+ * any switch on, fmi2DoStep runs sol_step_fx (same arithmetic and order as model.py). Model exchange
+ * with effects: continuous states Psi, the ladder currents and the temperature rise; hysteresis and
+ * friction evaluated from their memory committed at accepted steps (see me_eval). New states go to
+ * Core (the FMU state copies Core as a whole, so get/set/serialize follow automatically).
  */
 #include <math.h>
 #include <stdarg.h>
