@@ -427,3 +427,22 @@ def test_c_host_with_all_effects_runs_clean_under_valgrind(fx_host, fx_unzipped,
                      prefix=(valgrind, "-q", "--error-exitcode=1", "--leak-check=full",
                              "--errors-for-leak-kinds=definite,indirect,possible"))
     assert "Invalid read" not in proc.stderr and "uninitialised" not in proc.stderr
+
+
+def test_partial_effects_sections_build_and_match(tmp_path):
+    """Only some effects, a hysteresis without shape table, heating with default scalars: builds
+    (-Wall -Wextra -Werror with empty tables) and matches model.py; current mode G = 0 algebraic path."""
+    d = mf.write_maps(tmp_path / "partial", G_eddy_S=0.0)
+    meta = json.loads((d / "maps.json").read_text())
+    meta["effects"] = {"hysteresis": {"thresholds": [0.02, 0.05], "weights": [1.5, 0.7], "shape": None},
+                       "heating": {"C_th_J_per_K": 0.3}, "friction": None}
+    (d / "maps.json").write_text(json.dumps(meta))
+    fmu = F.build_fmu(d, tmp_path / "partial.fmu", backend="c")
+    md = fmpy.read_model_description(str(fmu))
+    unz = fmpy.extract(str(fmu))
+    tab = M.load_tables(d)
+    assert [u.variable.name for u in md.derivatives] == ["der(psi_state_Wb)", "der(T_state_K)"]
+    for mode in ("voltage", "current"):
+        got, ref, _ = _cs_pair(md, unz, tab, mode, {"hysteresis_on": True, "heating_on": True}, seed=9)
+        assert _rel_err(got, ref) <= 1e-9
+        assert np.max(np.abs(ref[:, 6])) > 0.01 and ref[-1, 7] > 0.0
