@@ -22,12 +22,14 @@ meaning of the paper's garbled eq. 7) and its RMS.
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-from .errors import SolenoidError
+from .errors import RecordingError, SolenoidError
 from .material import MU_0, MU_R_MAX, BHCurve
 
 #: Last log-log slope of chi: saturation law chi ~ H^-1.2 or faster (keeps B bounded-slope).
@@ -544,7 +546,7 @@ def choose_currents(i_A, psi_Wb, n: int = DEFAULT_N_CURRENTS) -> tuple[np.ndarra
 
 def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_size: float = DEFAULT_MESH_SIZE,
                 max_nfev: int = 15, m: int = 13, method: str = "gn", regularization: float = DEFAULT_REGULARIZATION,
-                progress=None, max_eval_auglag: int = 400, stage2: bool = True) -> IdentificationResult:
+                progress=None, max_eval_auglag: int = 400, stage2: bool = True, sigma_Wb=None) -> IdentificationResult:
     """Fit B(H) so that the FEM's Psi(i) at gap ``x_m`` matches the measured one (paper sec. 4).
 
     Parameters
@@ -578,6 +580,13 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
         Called as ``progress(sweeps, rms_rel)`` after every FEM sweep.
     max_eval_auglag : int
         ``auglag``: budget of objective evaluations (one FEM sweep each).
+    stage2 : bool
+        ``gn``: allow stage 2 (it runs only when stage 1 leaves a flux RMS above
+        :data:`FLUX_NOISE_FLOOR` and is kept only when it lowers the RMS by :data:`STAGE2_GAIN`).
+    sigma_Wb : array-like, shape (n,), optional
+        Uncertainty of each measured flux [Wb] beyond the noise floor, e.g. half the hysteresis
+        width (the commutation curve is a biased estimate of the magnetization curve where the loop
+        is wide). Residuals are weighted by s0 / sqrt(s0^2 + sigma^2), s0 = floor * peak flux.
 
     Raises
     ------
@@ -595,22 +604,31 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
         raise SolenoidError("identify_bh: currents and fluxes must be finite")
     if method not in ("gn", "auglag"):
         raise SolenoidError(f"identify_bh: unknown method {method!r} (use 'gn' or 'auglag')")
+    sig = np.zeros_like(i_A) if sigma_Wb is None else np.abs(np.asarray(sigma_Wb, dtype=float))
+    if sig.shape != i_A.shape or not np.all(np.isfinite(sig)):
+        raise SolenoidError(f"identify_bh: sigma_Wb must be finite with shape {i_A.shape}")
     keep = i_A > 0
-    i_A, psi_meas = i_A[keep], psi_meas[keep]
+    i_A, psi_meas, sig = i_A[keep], psi_meas[keep], sig[keep]
     order = np.argsort(i_A)
-    i_A, psi_meas = i_A[order], psi_meas[order]
+    i_A, psi_meas, sig = i_A[order], psi_meas[order], sig[order]
     model0, theta_lit = fit_to_curve(start_curve, m=m)
     scale = float(np.max(np.abs(psi_meas)))
     t0 = time.perf_counter()
     history: list = []
     fm = _FluxModel(geometry, x_m, i_A, model0.curve, mesh_size, start_curve)
 
+    s0 = FLUX_NOISE_FLOOR
+    weights = s0 / np.sqrt(s0**2 + (sig / scale) ** 2)
+
     def flux_res(theta):
         r = (fm.psi(theta) - psi_meas) / scale
         history.append(float(np.sqrt(np.mean(r**2))))
         if progress is not None:
             progress(fm.sweeps, history[-1])
-        return r
+        return r * weights
+
+    def wrms(r):
+        return float(np.sqrt(np.sum(r**2) / np.sum(weights**2)))
 
     # the error before: the start curve itself
     fm.curve_fn = lambda p: start_curve
@@ -619,11 +637,11 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
     if method == "gn":
         # stage 1: polarization scale and H stretch of the start curve
         fm.curve_fn = lambda p: scaled_curve(start_curve, p[0], p[1])
-        st1 = least_squares(flux_res, np.zeros(2), jac=lambda p: fm.jacobian(p, h=1e-3) / scale,
+        st1 = least_squares(flux_res, np.zeros(2), jac=lambda p: fm.jacobian(p, h=1e-3) * (weights / scale)[:, None],
                             bounds=([np.log(0.7), np.log(0.2)], [np.log(1.3), np.log(5.0)]), method="trf",
                             x_scale=1.0, max_nfev=12, xtol=1e-4, ftol=1e-4)
         curve1 = scaled_curve(start_curve, *st1.x, name="identified")
-        rms_stage1 = float(np.sqrt(np.mean(flux_res(st1.x) ** 2)))
+        rms_stage1 = wrms(flux_res(st1.x))
         extra["stage1"] = {"polarization_scale": float(np.exp(st1.x[0])), "H_stretch": float(np.exp(st1.x[1])),
                            "rms_rel_peak": rms_stage1, "sweeps": fm.sweeps}
         model, theta1 = fit_to_curve(curve1, m=m)
@@ -644,10 +662,10 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
                 return np.concatenate([flux_res(theta), w * (D @ theta - prior0)])
 
             def jac(theta):
-                return np.vstack([fm.jacobian(theta) / scale, w * D])
+                return np.vstack([fm.jacobian(theta) * (weights / scale)[:, None], w * D])
 
             res = _projected_lm(residual, jac, theta1, lo, hi, max_nfev)
-            rms2 = float(np.sqrt(np.mean(flux_res(res.x) ** 2)))
+            rms2 = wrms(flux_res(res.x))
             extra["stage2"] = {"rms_rel_peak": rms2, "accepted": bool(rms2 < STAGE2_GAIN * rms_stage1),
                                "status": _LSQ_STATUS.get(res.status, res.message)}
             if rms2 < STAGE2_GAIN * rms_stage1:
@@ -658,14 +676,15 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
     else:
         import nlopt
 
-        model, theta0 = model0, np.clip(theta_lit, *(b + d for b, d in zip(model0.bounds(), (1e-9, -1e-9))))
+        model = model0
         lo, hi = model.bounds()
+        theta0 = np.clip(theta_lit, lo + 1e-9, hi - 1e-9)
         fm.curve_fn = model.curve
         P = model.n_params
         best = {"f": np.inf, "x": theta0.copy()}
 
         def objective(theta, grad):
-            f = float(np.mean(np.abs(flux_res(np.asarray(theta)))))
+            f = float(np.sum(np.abs(flux_res(np.asarray(theta)))) / np.sum(weights))
             if f < best["f"] and constraint_values(model, theta).max() <= 1e-6:
                 best.update(f=f, x=np.array(theta))
             return f
@@ -693,7 +712,8 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
             code = opt.last_optimize_result()
         except nlopt.RoundoffLimited:
             theta, code = best["x"], -4
-        if constraint_values(model, theta).max() > 1e-6 or best["f"] < np.mean(np.abs(flux_res(theta))):
+        f_end = np.sum(np.abs(flux_res(theta))) / np.sum(weights)
+        if constraint_values(model, theta).max() > 1e-6 or best["f"] < f_end:
             theta = best["x"]  # the best feasible point seen
         status = nlopt_code_name(code)
         success = code > 0
@@ -703,13 +723,14 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
     wall = time.perf_counter() - t0
     e0, e1 = (psi0 - psi_meas) / scale, (psi1 - psi_meas) / scale
     fm.curve_fn = model.curve  # sensitivities in the nodal parameterization (a close fit of the final curve)
-    J = fm.jacobian(theta) / scale
+    J = fm.jacobian(theta) * (weights / scale)[:, None]
     H_steel, vol = fm.steel_H(theta, float(i_A.max()))
     order_h = np.argsort(H_steel)
     cum = np.cumsum(vol[order_h]) / vol.sum()
     H_max = float(H_steel[order_h][np.searchsorted(cum, 0.995)])  # the 0.5 % most loaded volume aside
     rms1 = float(np.sqrt(np.mean(e1**2)))
-    rng, H_u, unc = _identified_range(model, theta, J, rms1, H_max)
+    rng, H_u, unc = _identified_range(model, theta, J, wrms(e1 * weights), H_max)
+    extra["weights"] = [float(v) for v in weights]
     extra["B_uncertainty"] = {"H_A_per_m": [float(v) for v in H_u], "rel_1sigma": [float(v) for v in unc]}
     return IdentificationResult(
         curve=final_curve, start_curve=start_curve, theta=theta, theta_start=theta0,
@@ -721,3 +742,385 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
         mae_after=float(np.mean(np.abs(e1))), rms_after=rms1, mesh_size=float(mesh_size),
         identified_H_range_A_per_m=rng, H_max_steel_A_per_m=H_max,
         constraint_residuals=constraint_residuals(model, theta), history=history, extra=extra)
+
+
+# -- from recordings --------------------------------------------------------------------------------
+def _as_geometry(geometry):
+    from .geometry import load_geometry
+
+    if geometry is None or isinstance(geometry, (str, Path)):
+        return load_geometry(geometry)
+    return geometry
+
+
+def _as_curve(material) -> BHCurve:
+    from .material import load_material
+
+    if material is None or isinstance(material, (str, Path)):
+        return load_material(material)
+    return material
+
+
+def _group_flux(recs) -> tuple[list, list[list]]:
+    """Flux recordings grouped by stroke (1 um); the identification group first: the most
+    recordings, then the highest peak current."""
+    groups: dict[int, list] = {}
+    for rec in recs:
+        groups.setdefault(int(round(float(np.median(rec.positions_m())) * 1e6)), []).append(rec)
+    ordered = sorted(groups.values(), key=lambda g: (-len(g), -max(float(np.max(r.current_A)) for r in g)))
+    return ordered[0], ordered[1:]
+
+
+def hysteresis_half_width(cc, i_A) -> np.ndarray:
+    """Half the width of the hysteresis loop [Wb] (descending minus ascending branch, averaged
+    over the peaks reaching each level) of a commutation curve at currents ``i_A`` [A]: how far the
+    branch mean may sit from the magnetization curve the FEM computes."""
+    from .recordings import _peak_curves
+
+    branches = [b for r in cc.results for b in r.branches]
+    grid = np.linspace(0.0, max(b.peak_A for b in branches), 101)
+    _, widths = _peak_curves(branches, grid)
+    stack = np.vstack(widths)
+    ok = np.isfinite(stack).any(axis=0)
+    with np.errstate(all="ignore"):
+        W = np.nanmean(stack[:, ok], axis=0)
+    return 0.5 * np.abs(np.interp(i_A, grid[ok], W))
+
+
+def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
+    """Measured force vs stroke of a ``force_stroke`` recording, friction averaged out.
+
+    Samples with the current on (above half its peak) and the armature moving are binned by
+    position (``bin_m`` [m]); in each bin the mean force of the closing and of the opening pass
+    are averaged (dry friction has opposite signs in the two passes). Returns ``x_m``, ``force_N``
+    (bins seen in both directions) and ``i_A`` (median current while on).
+    """
+    x = rec.positions_m()
+    i = rec.current_A
+    F = rec.force_N
+    on = i > 0.5 * np.max(i)
+    t = rec.time_s
+    k = max(3, int(round(0.02 / max(np.median(np.diff(t)), 1e-9))))
+    xs = np.convolve(x, np.ones(k) / k, mode="same")
+    v = np.gradient(xs, t)
+    moving = np.abs(v) > 0.2 * np.percentile(np.abs(v[on]), 90) if on.any() else np.zeros_like(on)
+    sel = on & moving
+    if np.count_nonzero(sel) < 10:
+        raise RecordingError(rec._where(), ["force_stroke recording: no moving samples with the current on"])
+    edges = np.arange(x[sel].min(), x[sel].max() + bin_m, bin_m)
+    idx = np.digitize(x, edges) - 1
+    xc, fc = [], []
+    for b in range(len(edges) - 1):
+        inb = sel & (idx == b)
+        up, down = inb & (v > 0), inb & (v < 0)
+        if np.count_nonzero(up) >= 2 and np.count_nonzero(down) >= 2:
+            xc.append(0.5 * (edges[b] + edges[b + 1]))
+            fc.append(0.5 * (np.mean(F[up]) + np.mean(F[down])))
+    return {"x_m": np.array(xc), "force_N": np.array(fc), "i_A": float(np.median(i[on]))}
+
+
+def fem_force_vs_stroke(geometry, curve: BHCurve, i_A: float, x_m, mesh_size: float) -> np.ndarray:
+    """Co-energy force [N] (paper eq. 3) at current ``i_A`` [A] and gaps ``x_m`` [m] (FEM)."""
+    from .fem import Solver
+
+    solver = Solver(geometry, curve, mesh_size)
+    out = []
+    u = None
+    for x in np.asarray(x_m, dtype=float):
+        sol = solver.solve(float(i_A), float(x), u0=u)
+        u = sol.u
+        out.append(sol.force_N)
+    return np.array(out)
+
+
+def fem_flux(geometry, curve: BHCurve, i_A, x_m: float, mesh_size: float) -> np.ndarray:
+    """Psi [Wb] at currents ``i_A`` [A] and gap ``x_m`` [m] (FEM, warm-started sweep)."""
+    from .fem import Solver
+
+    solver = Solver(geometry, curve, mesh_size)
+    out = []
+    u = None
+    for i in np.asarray(i_A, dtype=float):
+        sol = solver.solve(float(i), float(x_m), u0=u)
+        u = sol.u
+        out.append(sol.psi_Wb)
+    return np.array(out)
+
+
+def write_curve_files(result: IdentificationResult, out_csv, sources=()) -> list[Path]:
+    """Write the identified curve: ``out_csv`` (H_A_per_m,B_T, loadable by ``load_material``) and,
+    beside it, ``.bh`` (FEMM style, "B H" per line, T and A/m) and ``.tab`` ("H B"), atomically."""
+    from .fileio import atomic_write_text
+    from .material import write_bh_csv
+
+    out_csv = Path(out_csv)
+    out_csv.parent.mkdir(parents=True, exist_ok=True)
+    H, B = result.curve.table(n=200)
+    lo, hi = result.identified_H_range_A_per_m
+    comment = (f"B(H) identified by solenoid-fmu identify ({result.method}) at x = {result.x_m * 1e3:g} mm\n"
+               f"identified H range {lo:.4g} .. {hi:.4g} A/m (outside: shape of the start curve)\n"
+               f"flux RMS error {result.rms_before * 100:.3g} % -> {result.rms_after * 100:.3g} % of peak\n"
+               + (f"recordings: {', '.join(Path(str(s)).name for s in sources)}" if sources else ""))
+    paths = [write_bh_csv(out_csv, H, B, comment=comment)]
+    bh = "\n".join(f"{b:.9g}\t{h:.9g}" for h, b in zip(H, B, strict=True)) + "\n"
+    tab = "\n".join(f"{h:.9g}\t{b:.9g}" for h, b in zip(H, B, strict=True)) + "\n"
+    paths.append(atomic_write_text(out_csv.with_suffix(".bh"), bh))
+    paths.append(atomic_write_text(out_csv.with_suffix(".tab"), tab))
+    return paths
+
+
+def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_size=None, out_csv=None,
+                             report_dir=None, progress=True, method: str = "gn", n_currents: int = DEFAULT_N_CURRENTS,
+                             **kwargs) -> IdentificationResult:
+    """Identify B(H) from test-rig recordings (the pipeline's entry point).
+
+    Parameters
+    ----------
+    paths : iterable of path
+        Recordings (CSV, format v1) of any kinds; the ``flux`` ones (by header kind) are used: the
+        stroke with the most of them is identified, flux at other strokes and ``force_stroke``
+        recordings validate (report). Other kinds are ignored.
+    geometry : Geometry or path, optional
+        Default: packaged PS45.
+    start_material : BHCurve or path, optional
+        Start curve (default: the literature curve).
+    mesh_size : float, optional
+        FEM mesh size (default :data:`DEFAULT_MESH_SIZE`).
+    out_csv : path, optional
+        Write the curve there (+ ``.bh`` and ``.tab`` beside it).
+    report_dir : path, optional
+        Write figures (paper figs. 10, 11, 15-17) and ``identification.json``.
+    progress : bool
+        Progress bar on stderr.
+    method : {"gn", "auglag"}
+    n_currents : int
+        Currents of the measured commutation curve used by the fit (:func:`choose_currents`).
+    **kwargs
+        Passed to :func:`identify_bh`.
+
+    Raises
+    ------
+    RecordingError
+        No ``flux`` recording among ``paths`` (or unreadable recordings).
+    """
+    from .recordings import commutation_curve, read_recording
+
+    paths = [Path(p) for p in paths]
+    recs = [read_recording(p) for p in paths]
+    flux = [r for r in recs if r.kind == "flux"]
+    if not flux:
+        raise RecordingError("identify", [f"no 'flux' recording among {len(paths)} file(s): "
+                                          + ", ".join(f"{p.name} ({r.kind})"
+                                                      for p, r in zip(paths, recs, strict=True))])
+    geom = _as_geometry(geometry)
+    start = _as_curve(start_material)
+    mesh_size = DEFAULT_MESH_SIZE if mesh_size is None else float(mesh_size)
+    main, others = _group_flux(flux)
+    cc = commutation_curve(main)
+    i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
+    sigma = hysteresis_half_width(cc, i_sel)
+    bar = None
+    cb = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(desc=f"identify B(H) ({method})", unit="sweep", file=sys.stderr)
+
+        def cb(n, rms):
+            bar.update(1)
+            bar.set_postfix_str(f"flux RMS {rms * 100:.3f} %")
+    try:
+        res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method=method,
+                          progress=cb, sigma_Wb=sigma, **kwargs)
+    finally:
+        if bar is not None:
+            bar.close()
+    res.extra["recordings"] = [str(r.path) for r in main]
+    res.extra["measured_commutation"] = {"i_A": [float(v) for v in cc.i_A], "psi_Wb": [float(v) for v in cc.psi_Wb]}
+    if out_csv is not None:
+        write_curve_files(res, out_csv, sources=[r.path for r in main])
+    if report_dir is not None:
+        write_report(res, report_dir, geometry=geom, other_flux=others,
+                     force_recordings=[r for r in recs if r.kind == "force_stroke"])
+    return res
+
+
+def _rel_rms(a, b, scale) -> float:
+    return float(np.sqrt(np.mean(((np.asarray(a) - np.asarray(b)) / scale) ** 2)))
+
+
+def write_report(result: IdentificationResult, report_dir, *, geometry=None, other_flux=(),
+                 force_recordings=()) -> dict:
+    """Figures like the paper's 10, 11 and 15-17 and ``identification.json`` into ``report_dir``.
+
+    - ``fig10_flux.png``: measured commutation Psi(i), FEM with the start and the identified curve.
+    - ``fig11_bh.png``: B(H) before and after, identified H range shaded, 1-sigma band of B.
+    - ``fig15_force_stroke.png``: force vs stroke per ``force_stroke`` recording (friction averaged
+      out), FEM with both curves (if any such recording).
+    - ``fig16_flux_other_strokes.png``: Psi(i) at the other strokes with flux recordings (if any).
+    The JSON is :meth:`IdentificationResult.summary` plus the validation errors (relative RMS).
+    Returns the summary dict.
+    """
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .fileio import atomic_write_text
+    from .recordings import commutation_curve
+
+    out = Path(report_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    geom = _as_geometry(geometry)
+    r = result
+    summary = r.summary()
+    summary.pop("measured_commutation", None)
+    ms = r.mesh_size
+    # fig. 10
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    mc = r.extra.get("measured_commutation")
+    if mc:
+        ax.plot(mc["i_A"], np.array(mc["psi_Wb"]) * 1e3, "k-", lw=1, label="measured (commutation curve)")
+    ax.plot(r.i_A, r.psi_before_Wb * 1e3, "s--", ms=4, label=f"FEM, start curve (RMS {r.rms_before * 100:.2f} %)")
+    ax.plot(r.i_A, r.psi_after_Wb * 1e3, "o-", ms=4, label=f"FEM, identified (RMS {r.rms_after * 100:.2f} %)")
+    ax.set_xlabel("i [A]")
+    ax.set_ylabel("Psi [mWb]")
+    ax.set_title(f"Flux linkage at x = {r.x_m * 1e3:g} mm (cf. paper fig. 10)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "fig10_flux.png", dpi=110)
+    plt.close(fig)
+    # fig. 11
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    H = np.geomspace(10.0, 3e5, 300)
+    B1 = r.curve.B_of_H(H)
+    ax.semilogx(H, r.start_curve.B_of_H(H), "--", label=f"start ({r.start_curve.name})")
+    ax.semilogx(H, B1, "-", label="identified")
+    unc = r.extra.get("B_uncertainty")
+    if unc:
+        sd = np.interp(H, unc["H_A_per_m"], unc["rel_1sigma"], left=np.nan, right=np.nan)
+        ax.fill_between(H, B1 * (1 - sd), B1 * (1 + sd), color="C1", alpha=0.2, lw=0, label="1-sigma (linearized)")
+    lo, hi = r.identified_H_range_A_per_m
+    if hi > 0:
+        ax.axvspan(max(lo, 10.0), hi, color="0.85", zorder=0, label="identified H range")
+    ax.set_xlabel("H [A/m]")
+    ax.set_ylabel("B [T]")
+    ax.set_ylim(0, max(2.4, float(B1.max()) * 1.05))
+    ax.set_title("B(H) before and after identification (cf. paper fig. 11)")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(out / "fig11_bh.png", dpi=110)
+    plt.close(fig)
+    # figs. 15-17: force vs stroke
+    validation: dict = {}
+    if force_recordings:
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        rows = []
+        for k, rec in enumerate(force_recordings):
+            try:
+                fc = force_stroke_curve(rec)
+            except RecordingError as err:
+                rows.append({"file": str(rec.path), "error": str(err)})
+                continue
+            x = fc["x_m"]
+            xs = np.linspace(x.min(), x.max(), 8)
+            f0 = fem_force_vs_stroke(geom, r.start_curve, fc["i_A"], xs, ms)
+            f1 = fem_force_vs_stroke(geom, r.curve, fc["i_A"], xs, ms)
+            fm_ = np.interp(xs, x, fc["force_N"])
+            sc = float(np.max(np.abs(fm_)))
+            rows.append({"file": Path(str(rec.path)).name, "i_A": fc["i_A"], "rms_rel_before": _rel_rms(f0, fm_, sc),
+                         "rms_rel_after": _rel_rms(f1, fm_, sc)})
+            c = f"C{k % 10}"
+            ax.plot(x * 1e3, fc["force_N"], "-", color=c, lw=1, label=f"measured {fc['i_A']:.2g} A")
+            ax.plot(xs * 1e3, f0, "x--", color=c, lw=0.8, ms=4)
+            ax.plot(xs * 1e3, f1, "o:", color=c, lw=0.8, ms=4)
+        ax.plot([], [], "kx--", label="FEM, start curve")
+        ax.plot([], [], "ko:", label="FEM, identified")
+        ax.set_xlabel("x [mm]")
+        ax.set_ylabel("F [N]")
+        ax.set_title("Force vs stroke (cf. paper figs. 15-17)")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(out / "fig15_force_stroke.png", dpi=110)
+        plt.close(fig)
+        validation["force_stroke"] = rows
+    if other_flux:
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        rows = []
+        for k, group in enumerate(other_flux):
+            cc = commutation_curve(group)
+            i_sel, psi_m = choose_currents(cc.i_A, cc.psi_Wb, 8)
+            p0 = fem_flux(geom, r.start_curve, i_sel, cc.position_m, ms)
+            p1 = fem_flux(geom, r.curve, i_sel, cc.position_m, ms)
+            sc = float(np.max(np.abs(psi_m)))
+            rows.append({"x_mm": cc.position_m * 1e3, "rms_rel_before": _rel_rms(p0, psi_m, sc),
+                         "rms_rel_after": _rel_rms(p1, psi_m, sc)})
+            c = f"C{k % 10}"
+            ax.plot(cc.i_A, cc.psi_Wb * 1e3, "-", color=c, lw=1, label=f"measured x = {cc.position_m * 1e3:g} mm")
+            ax.plot(i_sel, p0 * 1e3, "x--", color=c, ms=4)
+            ax.plot(i_sel, p1 * 1e3, "o:", color=c, ms=4)
+        ax.plot([], [], "kx--", label="FEM, start curve")
+        ax.plot([], [], "ko:", label="FEM, identified")
+        ax.set_xlabel("i [A]")
+        ax.set_ylabel("Psi [mWb]")
+        ax.set_title("Flux linkage at other strokes (cf. paper figs. 15-17)")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(out / "fig16_flux_other_strokes.png", dpi=110)
+        plt.close(fig)
+        validation["flux_other_strokes"] = rows
+    summary["validation"] = validation
+    atomic_write_text(out / "identification.json", json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+# -- command line -----------------------------------------------------------------------------------
+def add_cli(sub) -> None:
+    """Register ``solenoid-fmu identify``."""
+    p = sub.add_parser("identify",
+                       help="identify the steel's B(H) from flux recordings (FEM + optimizer, paper sec. 4)")
+    p.add_argument("recordings", nargs="+", help="recordings (CSV, format v1); flux ones are used, others ignored "
+                   "(force_stroke ones validate in the report)")
+    p.add_argument("--geometry", help="solenoid TOML (default: packaged PS45)")
+    p.add_argument("--start-material", help="start B(H) CSV H_A_per_m,B_T (default: literature 9SMnPb28)")
+    p.add_argument("-o", "--output", required=True, help="identified curve CSV (also writes .bh and .tab beside it)")
+    p.add_argument("--report", help="directory for figures and identification.json")
+    p.add_argument("--method", choices=("gn", "auglag"), default="gn",
+                   help="gn: Gauss-Newton with adjoint Jacobians (default); auglag: nlopt AUGLAG+BOBYQA (paper)")
+    p.add_argument("--mesh-size", type=float, default=None, help=f"FEM mesh size (default {DEFAULT_MESH_SIZE:g})")
+    p.add_argument("--max-evals", type=int, default=None, help="budget of FEM sweeps of the optimizer")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args) -> int:
+    import json
+
+    kw = {}
+    if args.max_evals is not None:
+        kw["max_nfev" if args.method == "gn" else "max_eval_auglag"] = args.max_evals
+    res = identify_from_recordings(args.recordings, geometry=args.geometry, start_material=args.start_material,
+                                   mesh_size=args.mesh_size, out_csv=args.output, report_dir=args.report,
+                                   progress=not args.json, method=args.method, **kw)
+    if args.json:
+        s = res.summary()
+        s.pop("measured_commutation", None)
+        s.pop("B_uncertainty", None)
+        print(json.dumps(s))
+        return 0
+    lo, hi = res.identified_H_range_A_per_m
+    print(f"identified B(H) at x = {res.x_m * 1e3:g} mm ({res.method}: {res.status})")
+    print(f"  flux error   MAE {res.mae_before * 100:.3f} % -> {res.mae_after * 100:.3f} %, "
+          f"RMS {res.rms_before * 100:.3f} % -> {res.rms_after * 100:.3f} % of peak")
+    print(f"  identified H range {lo:.4g} .. {hi:.4g} A/m (steel reaches {res.H_max_steel_A_per_m:.4g} A/m)")
+    print(f"  FEM solves {res.fem_solves}, sweeps {res.sweeps:.1f}, equivalent sweeps {res.equivalent_sweeps:.1f}, "
+          f"wall {res.wall_time_s:.1f} s")
+    print(f"  constraint residuals {res.constraint_residuals}")
+    print(f"  wrote {args.output} (+ .bh, .tab)" + (f", report in {args.report}" if args.report else ""))
+    return 0
