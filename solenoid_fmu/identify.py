@@ -685,6 +685,7 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
 
         def objective(theta, grad):
             f = float(np.sum(np.abs(flux_res(np.asarray(theta)))) / np.sum(weights))
+            extra.setdefault("auglag_mae_at_start_parameters", f)
             if f < best["f"] and constraint_values(model, theta).max() <= 1e-6:
                 best.update(f=f, x=np.array(theta))
             return f
