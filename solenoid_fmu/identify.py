@@ -318,6 +318,7 @@ class _FluxModel:
         self.solver = Solver(geometry, start_curve, mesh_size)
         self.x_m = float(x_m)
         self.i_A = np.asarray(i_A, dtype=float)
+        self._version = 0
         self.curve_fn = curve_fn  # parameters -> BHCurve (switchable between stages)
         self.u = [None] * len(self.i_A)
         self.solves = 0
@@ -327,10 +328,20 @@ class _FluxModel:
         self.sweeps = 0
         self._cache: tuple = (None, None, None)
 
+    @property
+    def curve_fn(self):
+        """parameters -> BHCurve; setting it invalidates the cache."""
+        return self._curve_fn
+
+    @curve_fn.setter
+    def curve_fn(self, fn):
+        self._curve_fn = fn
+        self._version += 1
+
     def psi(self, theta) -> np.ndarray:
         """Psi [Wb] at the currents for parameters ``theta`` (cached for the last theta)."""
         theta = np.asarray(theta, dtype=float)
-        key = (id(self.curve_fn), theta.tobytes())
+        key = (self._version, theta.tobytes())
         if self._cache[0] == key:
             return self._cache[1].copy()
         self.solver.material = self.curve_fn(theta)
