@@ -270,6 +270,11 @@ class IdentificationResult:
             "peak_node": self.model.peak,
         }
         out.update(self.extra)
+        w = np.asarray(self.extra.get("weights", np.ones(len(self.i_A))), dtype=float)
+        peak = float(np.max(np.abs(self.psi_meas_Wb)))
+        for key, psi in (("flux_error_before", self.psi_before_Wb), ("flux_error_after", self.psi_after_Wb)):
+            e = (psi - self.psi_meas_Wb) / peak * w
+            out[key]["rms_weighted_rel_peak"] = float(np.sqrt(np.sum(e**2) / np.sum(w**2)))
         return out
 
 

@@ -193,3 +193,36 @@ def test_demo_campaign_with_hysteresis_and_noise(tmp_path):
     for name in ("fig10_flux.png", "fig11_bh.png", "fig15_force_stroke.png"):
         assert (rep / name).stat().st_size > 10_000
     assert summary["status"] and summary["method"] == "gn"
+
+
+def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
+    """Flux recordings at two strokes: the stroke with more recordings is identified, the other
+    one is compared in fig. 16 and the JSON (here copies of demo recordings relabelled 2.0 mm)."""
+    from solenoid_fmu.identify import _group_flux, write_report
+    from solenoid_fmu.recordings import read_recording
+
+    src = sorted(glob.glob(f"{DEMO}/recordings/0[1-4]_flux_*.csv"))
+    moved = []
+    for p in src[:2]:
+        text = open(p).read().replace("# position_mm: 1.5\n", "# position_mm: 2.0\n")
+        q = tmp_path / ("moved_" + p.rsplit("/", 1)[-1])
+        q.write_text(text)
+        moved.append(q)
+    recs = [read_recording(p) for p in [*src, *moved]]
+    main, others = _group_flux(recs)
+    assert len(main) == 4 and {float(np.median(r.positions_m())) for r in main} == {X_ID}
+    assert len(others) == 1 and abs(float(np.median(others[0][0].positions_m())) - 2.0e-3) < 1e-9
+    geom = load_geometry()
+    lit = load_material()
+    i = np.array([0.3, 1.0, 2.0])
+    psi = fem_flux(geom, scaled_curve(lit, 0.0, np.log(1.3)), i, X_ID, 3.0)
+    res = identify_bh(i, psi, X_ID, geom, lit, mesh_size=3.0, stage2=False)
+    summary = write_report(res, tmp_path / "rep", geometry=geom, other_flux=others)
+    assert (tmp_path / "rep" / "fig16_flux_other_strokes.png").stat().st_size > 10_000
+    (row,) = summary["validation"]["flux_other_strokes"]
+    assert row["x_mm"] == pytest.approx(2.0)
+    # the relabelled data were measured at 1.5 mm: both curves must miss them by the stroke's effect
+    assert 0.005 < row["rms_rel_after"] < 0.2 and 0.005 < row["rms_rel_before"] < 0.2
+    saved = json.loads((tmp_path / "rep" / "identification.json").read_text())
+    assert saved["validation"] == json.loads(json.dumps(summary["validation"]))
+    assert saved["flux_error_after"]["rms_weighted_rel_peak"] < saved["flux_error_before"]["rms_weighted_rel_peak"]
