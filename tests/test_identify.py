@@ -26,7 +26,7 @@ from solenoid_fmu.identify import (
     nlopt_code_name,
     scaled_curve,
 )
-from solenoid_fmu.maps import force_at, load_maps
+from solenoid_fmu.maps import force_at, load_maps, psi_at
 from solenoid_fmu.material import MU_0, bh_curve_from_table, load_material, read_bh_csv
 
 DEMO = "fitting/ps45-demo"
@@ -182,6 +182,12 @@ def test_demo_campaign_with_hysteresis_and_noise(tmp_path):
         f_id = fem_force_vs_stroke(geom, ident, i_A, xs, summary["mesh_size"])
         f_true = force_at(maps, np.full_like(xs, i_A), xs)
         assert np.max(np.abs(f_id / f_true - 1.0)) < 0.05
+    # flux at other strokes against the truth maps
+    i = np.array([0.25, 0.5, 1.0, 1.5, 2.0])
+    for x in (0.6e-3, 2.6e-3):
+        p_id = fem_flux(geom, ident, i, x, summary["mesh_size"])
+        p_true = psi_at(maps, i, np.full_like(i, x))
+        assert np.sqrt(np.mean(((p_id - p_true) / p_true.max()) ** 2)) < 0.02
     for row in summary["validation"]["force_stroke"]:
         assert row["rms_rel_after"] < row["rms_rel_before"]
     # exports for commercial FEM and the report
