@@ -1017,8 +1017,17 @@ def write_report(result: IdentificationResult, report_dir, *, geometry=None, oth
     mc = r.extra.get("measured_commutation")
     if mc:
         ax.plot(mc["i_A"], np.array(mc["psi_Wb"]) * 1e3, "k-", lw=1, label="measured (commutation curve)")
-    ax.plot(r.i_A, r.psi_before_Wb * 1e3, "s--", ms=4, label=f"FEM, start curve (RMS {r.rms_before * 100:.2f} %)")
-    ax.plot(r.i_A, r.psi_after_Wb * 1e3, "o-", ms=4, label=f"FEM, identified (RMS {r.rms_after * 100:.2f} %)")
+    def errs(key):
+        e = summary[key]
+        return f"RMS {e['rms_rel_peak'] * 100:.2f} %, weighted {e['rms_weighted_rel_peak'] * 100:.2f} %"
+
+    ax.plot(r.i_A, r.psi_before_Wb * 1e3, "s--", ms=4, label=f"FEM, start curve ({errs('flux_error_before')})")
+    ax.plot(r.i_A, r.psi_after_Wb * 1e3, "o-", ms=4, label=f"FEM, identified ({errs('flux_error_after')})")
+    w = np.asarray(r.extra.get("weights", np.ones(len(r.i_A))))
+    low = w < 0.5
+    if low.any():
+        ax.plot(r.i_A[low], r.psi_meas_Wb[low] * 1e3, "o", mfc="none", mec="k", ms=8,
+                label="weight < 0.5 (wide hysteresis loop)")
     ax.set_xlabel("i [A]")
     ax.set_ylabel("Psi [mWb]")
     ax.set_title(f"Flux linkage at x = {r.x_m * 1e3:g} mm (cf. paper fig. 10)")
@@ -1150,8 +1159,11 @@ def _cli(args) -> int:
         return 0
     lo, hi = res.identified_H_range_A_per_m
     print(f"identified B(H) at x = {res.x_m * 1e3:g} mm ({res.method}: {res.status})")
+    s = res.summary()
+    wb, wa = s["flux_error_before"]["rms_weighted_rel_peak"], s["flux_error_after"]["rms_weighted_rel_peak"]
     print(f"  flux error   MAE {res.mae_before * 100:.3f} % -> {res.mae_after * 100:.3f} %, "
-          f"RMS {res.rms_before * 100:.3f} % -> {res.rms_after * 100:.3f} % of peak")
+          f"RMS {res.rms_before * 100:.3f} % -> {res.rms_after * 100:.3f} % of peak "
+          f"(weighted by the hysteresis width: {wb * 100:.3f} % -> {wa * 100:.3f} %)")
     print(f"  identified H range {lo:.4g} .. {hi:.4g} A/m (steel reaches {res.H_max_steel_A_per_m:.4g} A/m)")
     print(f"  FEM solves {res.fem_solves}, sweeps {res.sweeps:.1f}, equivalent sweeps {res.equivalent_sweeps:.1f}, "
           f"wall {res.wall_time_s:.1f} s")
