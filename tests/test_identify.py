@@ -232,3 +232,18 @@ def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
     saved = json.loads((tmp_path / "rep" / "identification.json").read_text())
     assert saved["validation"] == json.loads(json.dumps(summary["validation"]))
     assert saved["flux_error_after"]["rms_weighted_rel_peak"] < saved["flux_error_before"]["rms_weighted_rel_peak"]
+
+
+def test_curves_within_bounds_pass_the_material_checks(tmp_path, fitted):
+    """Any parameter vector within the bounds gives a table that load_material accepts."""
+    from solenoid_fmu.material import write_bh_csv
+
+    lit, model, theta = fitted
+    lo, hi = model.bounds()
+    rng = np.random.default_rng(3)
+    for k in range(4):
+        t = np.clip(theta + rng.normal(0.0, 0.5, len(theta)), lo, hi)
+        H, B = model.curve(t).table(n=200)
+        path = write_bh_csv(tmp_path / f"c{k}.csv", H, B)
+        back = load_material(path)
+        assert np.max(np.abs(back.B_of_H(H[1:]) / B[1:] - 1.0)) < 0.01
