@@ -35,7 +35,7 @@ from .errors import SolenoidError
 #: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests).
 PRESETS = {
     "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
-    "quick": {"identify_mesh_size": 3.0, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
+    "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
 }
 
 
