@@ -419,7 +419,8 @@ def write_maps_dir(tables: _model.MapTables, fmu_path, dest_dir) -> Path:
 
 
 def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
-            min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None) -> dict:
+            min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None,
+            before_report_dir=None) -> dict:
     """Add the effects the residual asks for; build the improved FMU; report before and after.
 
     Parameters
@@ -431,6 +432,8 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
         The improved FMU to write (its maps directory is written beside it, ``<stem>.maps/``).
     report_dir : path-like, optional
         Validation figures of the improved FMU and ``improve.json``.
+    before_report_dir : path-like, optional
+        Validation figures of the FMU before improvement.
 
     Returns
     -------
@@ -456,7 +459,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
     say(f"building {out_fmu}")
     build_fmu(maps_dir, out_fmu)
     say("validating the FMU before and after")
-    before = validate(fmu_path, recs)
+    before = validate(fmu_path, recs, report_dir=before_report_dir)
     after = validate(out_fmu, recs, report_dir=report_dir)
     fit_recs, _ = split_recordings(recs)
     fit_names = {_name(r) for r in fit_recs}
