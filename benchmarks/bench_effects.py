@@ -32,7 +32,7 @@ def _time(tab, n=20000, blocks=5) -> float:
     m = SolenoidModel(tab, {"drive_mode": "voltage"})
     m.initialize(0.0, 1.5e-3)
     best = float("inf")
-    for _b in range(blocks):
+    for _ in range(blocks):
         t0 = time.perf_counter()
         for k in range(n):
             m.step(1e-4, 12.0 * ((k % 5000) / 5000.0), 1.5e-3 + 1e-6 * (k % 100), None)

@@ -35,7 +35,7 @@ from .errors import SolenoidError
 #: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests).
 PRESETS = {
     "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
-    "quick": {"identify_mesh_size": 3.0, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
+    "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
 }
 
 
@@ -90,7 +90,6 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     from .improve import improve
     from .maps import InlineExecutor, build_maps, load_maps, save_maps
     from .recordings import read_recording
-    from .validate import validate
 
     if preset not in PRESETS:
         raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
@@ -165,7 +164,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
 
     t0 = step("validate and diagnose the FMU on every recording; improve")
     res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved",
-                  progress=lambda m: say(f"   {m}"))
+                  before_report_dir=out / "validate", progress=lambda m: say(f"   {m}"))
     times["improve"] = time.perf_counter() - t0
 
     t0 = step("report")
@@ -183,9 +182,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         "eddy": None if eddy is None else eddy.as_dict(), "recordings": [str(p) for p in paths],
         "skipped_files": [str(p) for p in skipped], "preset": preset, "times_s": times,
     }
-    # validation figures of the plain FMU (the improved one's are in improved/)
-    before_fig = validate(fmu, recs, report_dir=out / "validate")
-    html_path = _write_report(out / "report.html", name, summary, ident, res, before_fig)
+    html_path = _write_report(out / "report.html", name, summary, ident, res, res["before"])
     summary["report"] = str(html_path)
     times["report"] = time.perf_counter() - t0
     times["total"] = time.perf_counter() - t_all
