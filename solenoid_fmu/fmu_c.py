@@ -366,7 +366,7 @@ def compile_shared_library(src_dir, out_path, *, extra_flags=()) -> Path:
 
 
 def _raw_model_description(guid: str, params: dict, tables: _model.MapTables) -> bytes:
-    """A minimal co-simulation description with the 15 interface variables and their start values.
+    """A minimal co-simulation description with the interface variables (interface_for) and their start values.
 
     :func:`solenoid_fmu.fmu.finalize_model_description` completes it; then
     :func:`finish_model_description` adds model exchange.
