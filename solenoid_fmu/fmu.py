@@ -169,7 +169,8 @@ EFFECT_VARIABLES = (
 def interface_for(tables: _model.MapTables) -> tuple:
     """The FMU variables for these maps: :data:`VARIABLES`, plus :data:`EFFECT_VARIABLES` when
     maps.json carries an ``effects`` section."""
-    return VARIABLES + (EFFECT_VARIABLES if tables.meta.get("effects") else ())
+    fx = tables.meta.get("effects") or {}
+    return VARIABLES + (EFFECT_VARIABLES if any(v for v in fx.values()) else ())
 
 #: SI unit definitions (exponents of the SI base units) used in modelDescription.xml.
 UNIT_DEFINITIONS = {

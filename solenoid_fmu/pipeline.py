@@ -11,7 +11,8 @@
 4. **eddy**: the single eddy conductance from the ``eddy`` recordings, stored in ``maps/maps.json``;
 5. **export**: ``NAME.fmu`` (pythonfmu) and, when a C compiler is there, ``NAME-native.fmu``;
 6. **validate** and **diagnose** the FMU on every recording;
-7. **improve**: add the diagnosed effects -> ``NAME-improved.fmu`` (:mod:`solenoid_fmu.improve`);
+7. **improve**: add the diagnosed effects -> ``NAME-improved.fmu`` (:mod:`solenoid_fmu.improve`) and
+   its native twin ``NAME-improved-native.fmu``;
 8. **report**: ``report.html`` (self-contained) and ``summary.json``.
 
 ``summary.json`` holds ``material``, ``fmu``, ``improved_fmu`` (paths), ``effects_added`` (the
@@ -165,6 +166,12 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     t0 = step("validate and diagnose the FMU on every recording; improve")
     res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved",
                   before_report_dir=out / "validate", progress=lambda m: say(f"   {m}"))
+    native_improved = None
+    if native is not None:
+        try:
+            native_improved = build_fmu(res["maps"], out / f"{name}-improved-native.fmu", backend="c")
+        except SolenoidError as exc:
+            say(f"   improved native FMU not built: {exc}")
     times["improve"] = time.perf_counter() - t0
 
     t0 = step("report")
@@ -176,6 +183,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     summary = {
         "campaign": str(folder), "material": str(material_csv), "maps": str(maps_dir), "fmu": str(fmu),
         "native_fmu": None if native is None else str(native), "improved_fmu": res["improved_fmu"],
+        "improved_native_fmu": None if native_improved is None else str(native_improved),
         "improved_maps": res["maps"], "effects_added": res["effects_added"], "errors": errors,
         "diagnosis": res["diagnoses"][0] if res["diagnoses"] else None, "improve_steps": res["steps"],
         "identification": ident_summary,

@@ -145,3 +145,12 @@ def test_effect_state_round_trip_and_bad_effects(tmp_path):
     with pytest.raises(m.ModelMapsError, match="tau_s"):
         _maps_with_effects(tmp_path / "bad", {"eddy_ladder": {"G_S": [1e-3], "tau_s": [-1.0]}}).meta  # noqa: B018
         m.SolenoidModel(_maps_with_effects(tmp_path / "bad2", {"eddy_ladder": {"G_S": [1e-3], "tau_s": [-1.0]}}))
+
+
+def test_an_effects_section_of_nulls_is_no_effect(tmp_path):
+    from solenoid_fmu.fmu import VARIABLES, interface_for
+
+    tab = _maps_with_effects(tmp_path, {"friction": None, "heating": None})
+    model = m.SolenoidModel(tab)
+    assert model.state_names() == m.STATE_NAMES
+    assert interface_for(tab) == VARIABLES

@@ -22,7 +22,7 @@ def test_summary_json_has_the_documented_fields_and_files(demo):
     out, summary = demo
     on_disk = json.loads((out / "summary.json").read_text())
     assert on_disk["effects_added"] == summary["effects_added"]
-    for key in ("material", "fmu", "improved_fmu", "report"):
+    for key in ("material", "fmu", "improved_fmu", "improved_native_fmu", "report"):
         assert Path(on_disk[key]).is_file(), key
     assert set(on_disk["effects_added"]) <= WORDS
     assert all({"file", "signal", "before", "after"} <= set(e) for e in on_disk["errors"])
