@@ -52,8 +52,15 @@ class EddyFit:
     single_term_ok: bool = True
     message: str = ""
 
+    @property
+    def G_model_S(self) -> float:
+        """The conductance for the model [S]: the fit, or 0 when the fit is negative (no measurable eddy
+        current: the data scatter around zero; a negative conductance would feed energy in)."""
+        return max(self.G_eddy_S, 0.0)
+
     def as_dict(self) -> dict:
-        return {"G_eddy_S": self.G_eddy_S, "r2": self.r2, "per_recording": self.per_recording,
+        return {"G_eddy_S": self.G_eddy_S, "G_model_S": self.G_model_S, "r2": self.r2,
+                "per_recording": self.per_recording,
                 "single_term_ok": self.single_term_ok, "message": self.message}
 
 
@@ -118,7 +125,10 @@ def fit_eddy(recordings, maps) -> EddyFit:
     gs = np.array([p["G_eddy_S"] for p in per])
     spread = float(np.ptp(gs) / abs(g)) if len(gs) > 1 and g != 0 else 0.0
     ok = spread <= RATE_SPREAD_LIMIT and r2 >= R2_LIMIT
-    if ok:
+    if g < 0.0:
+        msg = (f"the fitted G_eddy is negative ({g:.3g} S, R^2 {r2:.3f}): no measurable eddy current; "
+               "the model uses G_eddy = 0")
+    elif ok:
         msg = f"one G_eddy fits all rates (spread {spread:.0%}, R^2 {r2:.3f})"
     else:
         order = np.argsort([p["rate_A_per_s"] for p in per])
@@ -144,7 +154,7 @@ def _cli(args) -> int:
     maps = load_maps(args.maps)
     fit = fit_eddy(args.recordings, maps)
     if args.write:
-        save_maps(maps.with_eddy(fit.G_eddy_S, source=", ".join(Path(r).name for r in args.recordings)),
+        save_maps(maps.with_eddy(fit.G_model_S, source=", ".join(Path(r).name for r in args.recordings)),
                   args.maps)
     if args.json:
         print(json.dumps(fit.as_dict()))

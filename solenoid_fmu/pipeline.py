@@ -146,9 +146,9 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     eddy = None
     if eddy_recs:
         eddy = fit_eddy(eddy_recs, maps)
-        save_maps(maps.with_eddy(eddy.G_eddy_S, source=", ".join(r.path.name for r in eddy_recs)), maps_dir)
+        save_maps(maps.with_eddy(eddy.G_model_S, source=", ".join(r.path.name for r in eddy_recs)), maps_dir)
         maps = load_maps(maps_dir)
-        say(f"   G_eddy = {eddy.G_eddy_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
+        say(f"   G_eddy = {eddy.G_model_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
     else:
         say("   no eddy recording: G_eddy stays 0")
     times["eddy"] = time.perf_counter() - t0
@@ -222,7 +222,7 @@ def _write_report(path, name, summary, ident, res, before) -> Path:
          "figures": ident_figs},
         {"heading": "Eddy currents",
          "text": "No eddy recording." if summary["eddy"] is None else
-         f"G_eddy = {summary['eddy']['G_eddy_S'] * 1e3:.4g} mS. {summary['eddy'].get('message', '')}"},
+         f"G_eddy = {summary['eddy']['G_model_S'] * 1e3:.4g} mS. {summary['eddy'].get('message', '')}"},
         {"heading": "Diagnosis of the FMU's residual",
          "text": f"Verdict: {summary['diagnosis']['verdict'] if summary['diagnosis'] else 'n/a'}.",
          "table": {"columns": ["effect", "score", "explained"],

@@ -100,3 +100,20 @@ def test_rig_campaign_with_single_linear_term(tmp_path):
     fit = fit_eddy(sorted((tmp_path / "c" / "recordings").glob("*.csv")), load_maps(mdir))
     assert fit.G_eddy_S == pytest.approx(6e-3, rel=0.05)
     assert fit.single_term_ok
+
+
+def test_a_negative_fit_gives_zero_for_the_model_never_a_negative_conductance(maps_dir):
+    """Data whose current *leads* the flux (as a heated coil's drifting eq.-4 flux can make it look) fit
+    to G < 0; the model must get G = 0 and the message must say why."""
+    tab = load_tables(maps_dir)
+    recs = []
+    for k, rate in enumerate((25.0, 100.0)):
+        r = _triangle_recording(tab, rate, 0.0, noise_V=2e-3, seed=k)
+        e = r.voltage_V - 12.5 * r.current_A  # induced voltage
+        recs.append(make_recording("eddy", "synthetic", r.time_s, r.current_A - 2e-3 * e, voltage_V=r.voltage_V,
+                                   position_m=X_M, coil_resistance_ohm=12.5))
+    fit = fit_eddy(recs, load_maps(maps_dir))
+    assert fit.G_eddy_S < -1e-3
+    assert fit.G_model_S == 0.0
+    assert "no measurable eddy current" in fit.message and not fit.single_term_ok
+    assert fit.as_dict()["G_model_S"] == 0.0
