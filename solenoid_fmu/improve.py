@@ -276,6 +276,34 @@ def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
             {"fitted_on": used})
 
 
+def heating_corrected(rec, heating: dict, R_ohm: float | None = None):
+    """The recording with the coil heating's resistive voltage removed (for a heating-free eq.-4 flux).
+
+    With the heating sub-model's parameters (``C_th_J_per_K``, ``R_th_K_per_W``, ``alpha_per_K``) the
+    temperature rise along the recording is integrated from the measured current,
+    ``C_th dT/dt = R (1 + alpha T) i^2 - T / R_th``, and ``R alpha T i`` is subtracted from the voltage,
+    so that paper eq. 4 with the resistance measured before the run gives the flux of a coil at constant
+    temperature. ``R_ohm`` [ohm] defaults to the header's resistance. Returns a new Recording (same
+    kind, header noted); recordings without a voltage are returned unchanged.
+    """
+    from dataclasses import replace
+
+    if rec.voltage_V is None:
+        return rec
+    R = float(R_ohm if R_ohm is not None else rec.coil_resistance_ohm)
+    C, Rth, alpha = heating["C_th_J_per_K"], heating["R_th_K_per_W"], heating["alpha_per_K"]
+    t = np.asarray(rec.time_s, dtype=float)
+    i = np.asarray(rec.current_A, dtype=float)
+    T = np.zeros_like(t)
+    for k in range(1, t.size):
+        Tk = T[k - 1]
+        T[k] = Tk + (t[k] - t[k - 1]) * (R * (1.0 + alpha * Tk) * i[k] ** 2 - Tk / Rth) / C
+    header = dict(rec.header)
+    note = f"voltage corrected for coil heating (C_th {C:.4g} J/K)"
+    header["notes"] = f"{header['notes']}; {note}" if header.get("notes") else note
+    return replace(rec, voltage_V=np.asarray(rec.voltage_V, dtype=float) - R * alpha * T * i, header=header)
+
+
 def _dahl(x: np.ndarray, presliding_m: float) -> np.ndarray:
     """Dahl friction state for F_c = 1 along positions ``x`` (same update as model.py)."""
     f = np.zeros_like(x)
@@ -542,5 +570,5 @@ def _cli(args) -> int:
 
 
 __all__ = ["ADDABLE", "ImproveError", "Improvement", "Step", "fit_eddy_ladder", "fit_friction", "fit_heating",
-           "fit_hysteresis",
+           "fit_hysteresis", "heating_corrected",
            "improve", "improve_tables", "split_recordings", "tables_from_fmu", "with_effects", "write_maps_dir"]

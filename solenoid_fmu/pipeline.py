@@ -15,6 +15,11 @@
    its native twin ``NAME-improved-native.fmu``;
 8. **report**: ``report.html`` (self-contained) and ``summary.json``.
 
+When ``improve`` adds coil heating and the residual left is still ``material``, the flux recordings the
+identification used carried the heating's eq.-4 drift: steps 2-7 run once more on recordings whose
+voltage is corrected with the fitted heating model (:func:`solenoid_fmu.improve.heating_corrected`,
+written to ``heating-corrected/``); ``summary.json["first_round"]`` keeps what the first round found.
+
 ``summary.json`` holds ``material``, ``fmu``, ``improved_fmu`` (paths), ``effects_added`` (the
 words ``diagnose`` uses), ``errors`` (one row per recording and signal: RMS error ``before`` and
 ``after`` improvement in the signal's SI unit, and the same normalized by the measured range),
@@ -119,60 +124,83 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     geom = load_geometry(geometry)
     times["recordings"] = time.perf_counter() - t0
 
-    t0 = step("identify B(H) from the flux recordings")
-    material_csv = out / "material" / "material.csv"
-    ident = _identify.identify_from_recordings(paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
-                                               out_csv=material_csv, report_dir=out / "identify",
-                                               progress=progress is not None, n_currents=cfg["n_currents"])
-    ident_summary = ident.summary()
-    say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
-        f"{ident_summary.get('equivalent_sweeps', float('nan')):.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")
-    times["identify"] = time.perf_counter() - t0
+    ident_paths, ident_recs, first_round, suffix = paths, recs, None, ""
+    for round_no in (1, 2):
+        t0 = step(f"identify B(H) from the flux recordings{suffix}")
+        material_csv = out / "material" / "material.csv"
+        ident = _identify.identify_from_recordings(ident_paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
+                                                   out_csv=material_csv, report_dir=out / "identify",
+                                                   progress=progress is not None, n_currents=cfg["n_currents"])
+        ident_summary = ident.summary()
+        say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
+            f"{ident_summary.get('equivalent_sweeps', float('nan')):.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")
+        times["identify"] = time.perf_counter() - t0
 
-    t0 = step("characteristic maps (FEM sweep with the identified steel)")
-    maps_dir = out / "maps"
-    x_m, i_A = _maps_grid(cfg, geom)
-    executor = InlineExecutor() if workers == 1 else cf.ProcessPoolExecutor(max_workers=workers)
-    try:
-        maps = build_maps(geom, ident.curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"], executor=executor,
-                          progress=progress is not None, name=f"{name}-identified")
-    finally:
-        executor.shutdown()
-    save_maps(maps, maps_dir)
-    times["maps"] = time.perf_counter() - t0
-
-    t0 = step("eddy-current parameter from the eddy recordings")
-    eddy_recs = [r for r in recs if r.kind == "eddy"]
-    eddy = None
-    if eddy_recs:
-        eddy = fit_eddy(eddy_recs, maps)
-        save_maps(maps.with_eddy(eddy.G_model_S, source=", ".join(r.path.name for r in eddy_recs)), maps_dir)
-        maps = load_maps(maps_dir)
-        say(f"   G_eddy = {eddy.G_model_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
-    else:
-        say("   no eddy recording: G_eddy stays 0")
-    times["eddy"] = time.perf_counter() - t0
-
-    t0 = step("export the FMU")
-    fmu = build_fmu(maps_dir, out / f"{name}.fmu")
-    native = None
-    try:
-        native = build_fmu(maps_dir, out / f"{name}-native.fmu", backend="c")
-    except SolenoidError as exc:  # no C compiler on this machine: the pythonfmu export still stands
-        say(f"   native FMU not built: {exc}")
-    say(f"   {fmu}" + (f", {native}" if native else ""))
-    times["export"] = time.perf_counter() - t0
-
-    t0 = step("validate and diagnose the FMU on every recording; improve")
-    res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved",
-                  before_report_dir=out / "validate", progress=lambda m: say(f"   {m}"))
-    native_improved = None
-    if native is not None:
+        t0 = step("characteristic maps (FEM sweep with the identified steel)")
+        maps_dir = out / "maps"
+        x_m, i_A = _maps_grid(cfg, geom)
+        executor = InlineExecutor() if workers == 1 else cf.ProcessPoolExecutor(max_workers=workers)
         try:
-            native_improved = build_fmu(res["maps"], out / f"{name}-improved-native.fmu", backend="c")
-        except SolenoidError as exc:
-            say(f"   improved native FMU not built: {exc}")
-    times["improve"] = time.perf_counter() - t0
+            maps = build_maps(geom, ident.curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"], executor=executor,
+                              progress=progress is not None, name=f"{name}-identified")
+        finally:
+            executor.shutdown()
+        save_maps(maps, maps_dir)
+        times["maps"] = time.perf_counter() - t0
+
+        t0 = step("eddy-current parameter from the eddy recordings")
+        eddy_recs = [r for r in ident_recs if r.kind == "eddy"]
+        eddy = None
+        if eddy_recs:
+            eddy = fit_eddy(eddy_recs, maps)
+            save_maps(maps.with_eddy(eddy.G_model_S, source=", ".join(r.path.name for r in eddy_recs)), maps_dir)
+            maps = load_maps(maps_dir)
+            say(f"   G_eddy = {eddy.G_model_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
+        else:
+            say("   no eddy recording: G_eddy stays 0")
+        times["eddy"] = time.perf_counter() - t0
+
+        t0 = step("export the FMU")
+        fmu = build_fmu(maps_dir, out / f"{name}.fmu")
+        native = None
+        try:
+            native = build_fmu(maps_dir, out / f"{name}-native.fmu", backend="c")
+        except SolenoidError as exc:  # no C compiler on this machine: the pythonfmu export still stands
+            say(f"   native FMU not built: {exc}")
+        say(f"   {fmu}" + (f", {native}" if native else ""))
+        times["export"] = time.perf_counter() - t0
+
+        t0 = step("validate and diagnose the FMU on every recording; improve")
+        res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved",
+                      before_report_dir=out / "validate", progress=lambda m: say(f"   {m}"))
+        native_improved = None
+        if native is not None:
+            try:
+                native_improved = build_fmu(res["maps"], out / f"{name}-improved-native.fmu", backend="c")
+            except SolenoidError as exc:
+                say(f"   improved native FMU not built: {exc}")
+        times["improve"] = time.perf_counter() - t0
+        heat = (res["effects_added"] and "heating" in res["effects_added"]
+                and res["diagnoses"] and res["diagnoses"][-1]["verdict"] == "material")
+        if round_no == 2 or not heat:
+            break
+        # Coil heating was found and a B(H)-like residual is left: the flux recordings the identification
+        # used carried the heating's eq.-4 drift. Correct them with the fitted heating model, identify again.
+        say("== the residual left is 'material' after adding coil heating: identify B(H) again from "
+            "heating-corrected flux")
+        from .improve import heating_corrected, tables_from_fmu
+        from .recordings import write_recording
+
+        heating = tables_from_fmu(res["improved_fmu"])[0].meta["effects"]["heating"]
+        corr_dir = out / "heating-corrected"
+        corr_dir.mkdir(parents=True, exist_ok=True)
+        ident_recs = [heating_corrected(r, heating) if r.kind in ("flux", "eddy") else r for r in recs]
+        ident_paths = [write_recording(corr_dir / r.path.name, c) if r.kind in ("flux", "eddy") else r.path
+                       for r, c in zip(recs, ident_recs, strict=True)]
+        ident_recs = [read_recording(p) for p in ident_paths]
+        first_round = {"effects_added": res["effects_added"], "identification": ident.summary(),
+                       "final_verdict": res["diagnoses"][-1]["verdict"]}
+        suffix = " (heating-corrected)"
 
     t0 = step("report")
     errors = []
@@ -189,6 +217,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         "identification": ident_summary,
         "eddy": None if eddy is None else eddy.as_dict(), "recordings": [str(p) for p in paths],
         "skipped_files": [str(p) for p in skipped], "preset": preset, "times_s": times,
+        "first_round": first_round,
     }
     html_path = _write_report(out / "report.html", name, summary, ident, res, res["before"])
     summary["report"] = str(html_path)

@@ -104,3 +104,22 @@ def test_improve_refuses_a_file_that_is_not_an_fmu(tmp_path, rig_campaign):
     bad.write_text("not a zip")
     with pytest.raises(ImproveError, match="x.fmu"):
         improve(bad, rig_campaign("")[:2], tmp_path / "o.fmu")
+
+
+def test_heating_correction_removes_the_eq4_flux_drift(rig_campaign):
+    """The rig's heating (C_th 300 J/K, R_th 1 K/W, copper) leaves eq. 4's flux open at the end of a
+    closed current cycle; the voltage corrected with the heating model closes it again."""
+    from solenoid_fmu.improve import heating_corrected
+    from solenoid_fmu.recordings import flux_linkage
+
+    heating = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": 0.00393}
+    for path in rig_campaign("heating"):
+        rec = read_recording(path)
+        if rec.kind != "force_stroke":  # long recordings at constant current: the largest drift
+            continue
+        raw = flux_linkage(rec).psi_Wb
+        fixed = flux_linkage(heating_corrected(rec, heating)).psi_Wb
+        peak = np.max(np.abs(fixed))
+        assert abs(raw[-1] - raw[0]) > 0.01 * peak
+        assert abs(fixed[-1] - fixed[0]) < 0.1 * abs(raw[-1] - raw[0])
+        assert "coil heating" in heating_corrected(rec, heating).header["notes"]
