@@ -15,8 +15,9 @@
    its native twin ``NAME-improved-native.fmu``;
 8. **report**: ``report.html`` (self-contained) and ``summary.json``.
 
-When ``improve`` adds coil heating and the residual left is still ``material``, the flux recordings the
-identification used carried the heating's eq.-4 drift: steps 2-7 run once more on recordings whose
+When ``improve`` adds coil heating, the flux recordings the identification used carried the heating's
+eq.-4 drift (a B(H) error the diagnosis cannot always separate from the effects left, e.g. hysteresis
+explains part of a force residual a wrong B(H) leaves): steps 2-7 run once more on recordings whose
 voltage is corrected with the fitted heating model (:func:`solenoid_fmu.improve.heating_corrected`,
 written to ``heating-corrected/``); ``summary.json["first_round"]`` keeps what the first round found.
 
@@ -180,14 +181,13 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
             except SolenoidError as exc:
                 say(f"   improved native FMU not built: {exc}")
         times["improve"] = time.perf_counter() - t0
-        heat = (res["effects_added"] and "heating" in res["effects_added"]
-                and res["diagnoses"] and res["diagnoses"][-1]["verdict"] == "material")
+        heat = "heating" in res["effects_added"]
         if round_no == 2 or not heat:
             break
-        # Coil heating was found and a B(H)-like residual is left: the flux recordings the identification
-        # used carried the heating's eq.-4 drift. Correct them with the fitted heating model, identify again.
-        say("== the residual left is 'material' after adding coil heating: identify B(H) again from "
-            "heating-corrected flux")
+        # Coil heating was found: the flux recordings the identification used carried the heating's eq.-4
+        # drift (a B(H) error that the diagnosis may not be able to separate from the other effects left).
+        # Correct them with the fitted heating model and identify again.
+        say("== coil heating was added: identify B(H) again from heating-corrected flux")
         from .improve import heating_corrected, tables_from_fmu
         from .recordings import write_recording
 
