@@ -32,17 +32,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from bench_effects import EFFECTS  # noqa: E402  (the same effect parameters as bench_effects.py)
 from bench_fmu import _block, _load  # noqa: E402  (sibling benchmark script)
-
-#: Effect sub-models of the "all effects" FMU (maps.json ``effects``): the parameters of
-#: ``benchmarks/bench_effects.py`` (12 plays with a shape table, 3 ladder sections, heating, friction).
-EFFECTS = {
-    "hysteresis": {"thresholds": [0.01 * (k + 1) for k in range(12)], "weights": [0.05] * 12,
-                   "shape": {"b_nodes": [0.0, 0.2, 0.4], "g_nodes": [1.0, 0.8, 0.3]}},
-    "eddy_ladder": {"G_S": [1e-3, 2e-3, 1e-3], "tau_s": [3e-4, 1e-3, 3e-3]},
-    "heating": {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": 0.00393},
-    "friction": {"force_N": 2.5, "presliding_m": 2e-5},
-}
 
 
 def _host_ns(host, fmu, tmp, n_host, runs, *extra):

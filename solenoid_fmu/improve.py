@@ -52,6 +52,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import model as _model
+from .diagnose import _lowpass  # first-order low-pass, exact for held samples (the ladder's filter)
 from .errors import SolenoidError
 
 #: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
@@ -160,15 +161,6 @@ def _name(rec) -> str:
 
 def _i_f(tables: _model.MapTables, psi: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.array([tables.i_f_A(float(p), float(xx)) for p, xx in zip(psi, x, strict=True)])
-
-
-def _lowpass(e: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
-    """State of ``tau y' = e - y`` from 0 with ``e`` held over each sample interval (exact)."""
-    y = np.zeros_like(e)
-    a = np.exp(-np.diff(t) / tau)
-    for k in range(1, e.size):
-        y[k] = a[k - 1] * y[k - 1] + (1.0 - a[k - 1]) * e[k]
-    return y
 
 
 def _flux_data(rec):
@@ -323,21 +315,15 @@ def fit_friction(tables, effects, cases) -> tuple[dict, dict]:
     if not moving:
         raise ImproveError("friction: no recording with force and a moving armature")
     best = None
+    res = [c.residuals["force_N"] - np.mean(c.residuals["force_N"]) for c in moving]
     for p in PRESLIDING_M:
-        num = den = sse = 0.0
-        for c in moving:
-            phi = _dahl(np.asarray(c.position_m, dtype=float), p)
-            r = c.residuals["force_N"] - np.mean(c.residuals["force_N"])
-            phi0 = phi - phi.mean()
-            num += float(phi0 @ r)
-            den += float(phi0 @ phi0)
+        phis = [_dahl(np.asarray(c.position_m, dtype=float), p) for c in moving]
+        phis = [phi - phi.mean() for phi in phis]
+        den = sum(float(phi @ phi) for phi in phis)
         if den <= 0:
             continue
-        Fc = num / den
-        for c in moving:
-            phi = _dahl(np.asarray(c.position_m, dtype=float), p)
-            r = c.residuals["force_N"] - np.mean(c.residuals["force_N"])
-            sse += float(np.sum((r - Fc * (phi - phi.mean())) ** 2))
+        Fc = sum(float(phi @ r) for phi, r in zip(phis, res, strict=True)) / den
+        sse = sum(float(np.sum((r - Fc * phi) ** 2)) for phi, r in zip(phis, res, strict=True))
         if best is None or sse < best[0]:
             best = (sse, Fc, p)
     if best is None or best[1] <= 0.0:
@@ -347,17 +333,11 @@ def fit_friction(tables, effects, cases) -> tuple[dict, dict]:
 
 # -- the loop ------------------------------------------------------------------------------------
 def _cases(tables, recordings, progress=None):
-    from .diagnose import residual_case
+    from .diagnose import cases_from_recordings
     from .fmu import simulate_model
 
-    out = []
-    for rec in recordings:
-        if progress:
-            progress(f"simulating {_name(rec)}")
-        c = residual_case(rec, lambda r, R: simulate_model(tables, r, R_ohm=R))
-        if c is not None:
-            out.append(c)
-    return out
+    return cases_from_recordings(None, recordings, progress=progress and (lambda n: progress(f"simulating {n}")),
+                                 simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
 
 
 def _error(cases, names) -> float:
