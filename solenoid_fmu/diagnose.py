@@ -37,6 +37,8 @@ data, so a model that lacks nothing scores near zero everywhere.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -76,6 +78,10 @@ class ResidualCase:
         How the FMU was driven (``"current"`` or ``"voltage"``); "" when not from a recording.
     path : str
         The recording's full path; "" when not from a file.
+    detrended : tuple of str
+        Signals whose residual is only known up to a linear trend ``a + b t`` and was projected
+        orthogonal to it (``psi_Wb`` of a recording without a zero-current rest: eq. 4 cannot
+        measure its voltage offset); their features are projected the same way.
     """
 
     name: str
@@ -89,6 +95,7 @@ class ResidualCase:
     kind: str = ""
     drive: str = ""
     path: str = ""
+    detrended: tuple = ()
 
 
 @dataclass
@@ -136,6 +143,42 @@ def _stop(b: np.ndarray, r: float) -> np.ndarray:
     return out
 
 
+def conditioned_position(x_m: np.ndarray) -> np.ndarray:
+    """A measured armature position [m] without the reversals its noise fakes.
+
+    Position encoders jitter by their noise and resolution; the model's friction (a Dahl state
+    driven by position changes, like the rig's) would take every jitter for a reversal and lose
+    its force. The position is passed through a play operator of half-width
+    ``r = 3 sigma + q`` (``sigma``: robust noise from second differences, ``q``: the encoder
+    step, the smallest non-zero change) and shifted back by ``r`` in the direction of the last
+    motion: while the armature moves, this is the measured position's running extreme (within
+    the noise of the true one); while it stands, the position it stopped at. Positions that never
+    move beyond ``r`` come back unchanged.
+    """
+    x = np.asarray(x_m, dtype=float)
+    if x.size < 5 or not np.all(np.isfinite(x)):
+        return x
+    d = np.abs(np.diff(x))
+    nz = d[d > 0]
+    if nz.size == 0:
+        return x
+    d2 = np.diff(x, 2)
+    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+    r = 3.0 * sigma + float(np.min(nz))
+    if not 0.0 < r < 0.25 * float(np.ptp(x)):
+        return x
+    out = np.empty_like(x)
+    y = float(x[0])
+    direction = 0.0
+    for k, v in enumerate(x.tolist()):
+        if v - r > y:
+            y, direction = v - r, 1.0
+        elif v + r < y:
+            y, direction = v + r, -1.0
+        out[k] = y + r * direction
+    return out
+
+
 def _lowpass(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     """First-order low-pass y' = (x - y)/tau, exact for piecewise-constant x (any time grid)."""
     y = np.empty_like(x)
@@ -152,12 +195,31 @@ def _ddt(y: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.gradient(y, t) if len(t) > 2 else np.zeros_like(y)
 
 
+def detrend(y: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``y`` (shape (n,) or (n, p)) less its least-squares fit by ``a + b t`` (per column)."""
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        return np.zeros_like(y)
+    tc = (t - t.mean()) / max(float(np.ptp(t)), 1e-30)
+    basis = np.column_stack([np.ones_like(tc), tc])
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return y - basis @ coef
+
+
 def features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.ndarray | None:
     """Feature matrix (n, p) of ``effect`` for ``signal`` of ``case``, or None if not applicable.
 
     ``scales`` holds global normalizations (``psi`` [Wb], ``x`` [m], ``x_span`` [m]) so that
-    features are comparable across recordings.
+    features are comparable across recordings. For a signal in ``case.detrended`` the features
+    are projected orthogonal to ``a + b t`` like its residual.
     """
+    X = _features(effect, case, signal, scales)
+    if X is not None and signal in case.detrended:
+        X = detrend(X, case.time_s)
+    return X
+
+
+def _features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.ndarray | None:
     t = case.time_s
     psi = case.psi_Wb / scales["psi"]
     n = len(t)
@@ -171,15 +233,16 @@ def features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.n
     if effect == "heating":
         if signal not in ("voltage_V", "current_A", "psi_Wb"):
             return None
+        # Within one recording (seconds to minutes) the coil heats adiabatically: the temperature
+        # rise is int i^2 R dt / C_th. One column, so that its coefficient (alpha / C_th) is the
+        # same in every recording: several thermal time constants would be collinear over a short
+        # recording and their fitted mix would not carry over to the next (held-out) one.
         p = case.current_A**2 * case.resistance_ohm
-        cols = []
-        for tau in (30.0, 120.0, 600.0, 1200.0):
-            rise = _lowpass(p, t, tau)  # temperature rise / R_th of a first-order thermal model
-            ohmic = case.current_A * rise  # i * dR: the voltage (or, negated, current) error
-            if signal == "psi_Wb":  # eq. 4 with the header R integrates the ohmic error
-                ohmic = np.concatenate([[0.0], np.cumsum(0.5 * (ohmic[1:] + ohmic[:-1]) * np.diff(t))])
-            cols.append(ohmic)
-        return np.column_stack(cols)
+        rise = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(t))])
+        ohmic = case.current_A * rise  # i * dR: the voltage (or, negated, current) error
+        if signal == "psi_Wb":  # eq. 4 with the header R integrates the ohmic error
+            ohmic = np.concatenate([[0.0], np.cumsum(0.5 * (ohmic[1:] + ohmic[:-1]) * np.diff(t))])
+        return ohmic[:, None]
     if effect == "friction":
         if signal != "force_N":
             return None
@@ -222,10 +285,25 @@ def _scales(cases: list[ResidualCase]) -> dict:
 
 
 def _folds(cases: list[ResidualCase]) -> list[tuple[list, list]]:
-    """Two folds of (case index, sample mask) for cross-validation."""
+    """Two folds of (case index, sample mask) for cross-validation.
+
+    Whole recordings go to one fold or the other: within each kind, ordered by peak current and
+    then by the largest current step, alternately (one toggle running across kinds), so that
+    both folds hold recordings of every kind and size whatever the files are called.
+    """
     if len(cases) >= 2:
-        a = [(k, np.ones(len(c.time_s), bool)) for k, c in enumerate(cases) if k % 2 == 0]
-        b = [(k, np.ones(len(c.time_s), bool)) for k, c in enumerate(cases) if k % 2 == 1]
+        by_kind: dict = {}
+        for k, c in enumerate(cases):
+            by_kind.setdefault(c.kind, []).append(k)
+        a, b = [], []
+        toggle = 0
+        for kind in sorted(by_kind):
+            ks = sorted(by_kind[kind], key=lambda k: (-float(np.max(np.abs(cases[k].current_A))),
+                                                      -float(np.max(np.abs(np.diff(cases[k].current_A)),
+                                                                    initial=0.0)), cases[k].name))
+            for k in ks:
+                (a if toggle == 0 else b).append((k, np.ones(len(cases[k].time_s), bool)))
+                toggle ^= 1
         return [(a, b), (b, a)]
     n = len(cases[0].time_s)
     half = (np.arange(n) * 20 // max(n, 1)) % 2 == 0  # 20 alternating blocks: both folds span the run
@@ -268,6 +346,8 @@ def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict
 def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partner: str = "material") -> Candidate:
     """Held-out share of residual energy that ``effect`` explains beyond ``partner``.
 
+    Per signal: ``(SSE(partner) - min(SSE(partner + effect), SSE(effect))) / SS``, all held out.
+
     Every effect other than ``material`` is scored by what it adds to the material polynomial (a
     smooth function of Psi and x that a corrected B(H) would remove); ``material`` itself is
     scored by what it adds to the best other effect (see :func:`diagnose`). So neither a flexible
@@ -291,6 +371,12 @@ def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partne
             base, _, _ = _cv_sse((partner,), cases, signal, scales)
             if base == 0.0:  # the partner does not apply to this signal
                 base = ss
+            # the partner's columns can also spoil the held-out prediction (a smooth polynomial fitted
+            # on some recordings extrapolates badly to others): then the effect alone is the better
+            # model, and what it explains beyond the partner is measured against that
+            # (on the same samples: where the effect does not apply, it leaves the residual as it is)
+            sse_alone, ss_alone, _ = _cv_sse((effect,), cases, signal, scales)
+            sse = min(sse, sse_alone + (ss - ss_alone))
         per_signal[signal] = (base - sse) / ss
         sse_total += sse - base
         ss_total += ss
@@ -383,6 +469,8 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) ->
         rec = item if isinstance(item, Recording) else read_recording(item)
         if progress:
             progress(rec.path.name if rec.path is not None else rec.kind)
+        if rec.position_m is not None:  # drive the model with the position less its encoder jitter
+            rec = dataclasses.replace(rec, position_m=conditioned_position(rec.position_m))
         case = residual_case(rec, simulate)
         if case is not None:
             cases.append(case)
@@ -394,9 +482,18 @@ def residual_case(rec, simulate) -> ResidualCase | None:
 
     The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
     measured voltage with the coil resistance ``R`` of the recording (header or estimate); the
-    simulated one is the same integral of the simulated voltage, ``Psi_sim(0) + sum h (U_sim - R i)``
-    over the steps. For a model with constant resistance this is exactly the simulated flux; a
-    model with coil heating then shows the same ``R(T)`` drift the measurement carries.
+    simulated one is the same integral of the simulated voltage, ``sum h (U_sim - R i)`` over the
+    steps. For a model with constant resistance this is exactly the simulated flux; a model with
+    coil heating then shows the same ``R(T)`` drift the measurement carries.
+
+    Eq. 4 measures flux *changes*: its integration constant is only known when the recording
+    starts at rest (zero current, demagnetized). Both fluxes are therefore anchored to the
+    model's flux at the first sample (``Psi_sim(0)``, the simulator's start value from the first
+    sample's current and position) and only their changes are compared, which is exact for a
+    recording from rest and the honest comparison for one that starts energized (the report's
+    flux plots say "anchored to the model at t = 0"). A recording without any zero-current rest
+    has no measured voltage offset either: its flux residual is known up to ``a + b t`` and is
+    projected orthogonal to that trend (``ResidualCase.detrended``).
     """
     from .recordings import flux_linkage
 
@@ -409,6 +506,7 @@ def residual_case(rec, simulate) -> ResidualCase | None:
     sim = simulate(rec, R)
     s = sim.recording
     psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
+    detrended = ()
     if rec.force_N is not None:
         residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
         measured["force_N"] = np.asarray(rec.force_N)
@@ -421,8 +519,13 @@ def residual_case(rec, simulate) -> ResidualCase | None:
             i = np.asarray(rec.current_A, dtype=float)
             inc = np.diff(t) * (np.asarray(s.voltage_V)[1:] - R * i[1:])
             psi_app = psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)])
-            residuals["psi_Wb"] = fr.psi_Wb - psi_app
-            measured["psi_Wb"] = fr.psi_Wb
+            psi_meas = psi_sim[0] + fr.psi_Wb
+            res = psi_meas - psi_app
+            if not fr.offset_measured:
+                res = detrend(res, t)
+                detrended = ("psi_Wb",)
+            residuals["psi_Wb"] = res
+            measured["psi_Wb"] = psi_meas
     else:
         residuals["current_A"] = np.asarray(rec.current_A) - np.asarray(s.current_A)
         measured["current_A"] = np.asarray(rec.current_A)
@@ -431,7 +534,7 @@ def residual_case(rec, simulate) -> ResidualCase | None:
     name = rec.path.name if rec.path is not None else rec.kind
     return ResidualCase(name, np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
                         np.asarray(rec.positions_m()), R or 1.0, residuals, measured, kind=rec.kind,
-                        drive=sim.drive_mode, path="" if rec.path is None else str(rec.path))
+                        drive=sim.drive_mode, path="" if rec.path is None else str(rec.path), detrended=detrended)
 
 
 def add_cli(sub) -> None:

@@ -52,8 +52,12 @@ from typing import NamedTuple
 import numpy as np
 
 from . import model as _model
-from .diagnose import _lowpass  # first-order low-pass, exact for held samples (the ladder's filter)
+from .diagnose import (
+    _lowpass,  # first-order low-pass, exact for held samples (the ladder's filter)
+    detrend,
+)
 from .errors import SolenoidError
+from .hysteresis import HysteresisError
 
 #: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
 ADDABLE = {"hysteresis": "hysteresis", "eddy": "eddy_ladder", "heating": "heating", "friction": "friction"}
@@ -135,11 +139,26 @@ def with_effects(tables: _model.MapTables, effects: dict, G_eddy_S: float | None
 
 
 # -- recordings ----------------------------------------------------------------------------------
-def split_recordings(recordings) -> tuple[list, list]:
-    """Fit / validation split: per kind, in file-name order from the last, alternately fit and validate.
+def _excitation_size(rec) -> tuple[float, float]:
+    """(peak |current| [A] to 2 %, 95th percentile of |di/dt| [A/s]): how large an excitation is."""
+    i = np.asarray(rec.current_A, dtype=float)
+    t = np.asarray(rec.time_s, dtype=float)
+    peak = float(np.max(np.abs(i))) if i.size else 0.0
+    k = max(1, int(round(1e-3 / max(float(np.median(np.diff(t))), 1e-12)))) if t.size > 1 else 1
+    if t.size > 2 * k:
+        rate = float(np.percentile(np.abs(i[k:] - i[:-k]) / (t[k:] - t[:-k]), 95))
+    else:
+        rate = 0.0
+    return (round(math.log(peak), 1) if peak > 0 else -math.inf, rate)
 
-    The largest excitation of a series (files are numbered by amplitude or rate) is fitted; a kind
-    with a single recording is only validated on.
+
+def split_recordings(recordings) -> tuple[list, list]:
+    """Fit / validation split: per kind, from the largest excitation down, alternately fit and validate.
+
+    "Largest" is judged from the data, not from file names (other rigs name files anyhow): the
+    peak current (to about 10 %), then the rate of change of the current. The largest excitation
+    of a kind is fitted; a kind with a single recording is only validated on. Ties keep the
+    order of the file names.
     """
     by_kind: dict = {}
     for rec in recordings:
@@ -147,10 +166,11 @@ def split_recordings(recordings) -> tuple[list, list]:
     fit, val = [], []
     for recs in by_kind.values():
         recs = sorted(recs, key=lambda r: str(r.path or ""))
+        recs = sorted(recs, key=_excitation_size, reverse=True)
         if len(recs) == 1:
             val.extend(recs)
             continue
-        for k, rec in enumerate(reversed(recs)):
+        for k, rec in enumerate(recs):
             (fit if k % 2 == 0 else val).append(rec)
     return fit, val
 
@@ -163,13 +183,24 @@ def _i_f(tables: _model.MapTables, psi: np.ndarray, x: np.ndarray) -> np.ndarray
     return np.array([tables.i_f_A(float(p), float(xx)) for p, xx in zip(psi, x, strict=True)])
 
 
-def _flux_data(rec):
+def _flux_data(rec, tables: _model.MapTables):
+    """(t, Psi, dPsi/dt, i, x) of a recording from paper eq. 4, or None if its flux is not absolute.
+
+    A recording that starts energized has Psi anchored to the maps' flux at the first sample's
+    current and position (the integration constant eq. 4 cannot give); one without any
+    zero-current rest (no measured voltage offset) is left out (None).
+    """
     from .recordings import flux_linkage
 
     fr = flux_linkage(rec)
+    if not fr.offset_measured:
+        return None
     t = np.asarray(rec.time_s, dtype=float)
+    x = np.asarray(rec.positions_m(), dtype=float)
     psi = np.asarray(fr.psi_Wb, dtype=float)
-    return t, psi, np.gradient(psi, t), np.asarray(rec.current_A, dtype=float), np.asarray(rec.positions_m())
+    if not fr.starts_at_rest:
+        psi = psi + tables.psi_of_current(float(fr.current_A[0]), float(x[0]))
+    return t, psi, np.gradient(psi, t), np.asarray(rec.current_A, dtype=float), x
 
 
 def _eddy_current(tables, effects, e, t) -> np.ndarray:
@@ -204,17 +235,27 @@ def fit_hysteresis(tables, effects, recordings) -> tuple[dict, dict]:
         recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
     if not recs:
         raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
-    bs, hs = [], []
+    bs, hs, used = [], [], []
     for rec in recs:
-        t, psi, e, i, x = _flux_data(rec)
+        data = _flux_data(rec, tables)
+        if data is None:
+            continue
+        t, psi, e, i, x = data
         h = i - _i_f(tables, psi, x) - _eddy_current(tables, effects, e, t)
         step = max(1, psi.size // 3000)  # rate-independent: a decimated series keeps the loops
         bs.append(psi[::step])
         hs.append(h[::step])
-    fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0)
+        used.append(rec)
+    if not bs:
+        raise ImproveError("hysteresis: not identifiable from these recordings: add a slow 'flux' recording "
+                           "(triangles from zero current, with a zero-current rest for the voltage offset)")
+    try:
+        fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0)
+    except HysteresisError as exc:
+        raise ImproveError(f"hysteresis: {exc}") from None
     d = fit.play.to_dict()
     section = {"thresholds": d["thresholds"], "weights": d["weights"], "shape": d["shape"]}
-    return section, {"fitted_on": [_name(r) for r in recs], "rms_A": fit.rms}
+    return section, {"fitted_on": [_name(r) for r in used], "rms_A": fit.rms}
 
 
 def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
@@ -224,13 +265,20 @@ def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
     recs = [r for r in recordings if r.kind == "eddy" and r.voltage_V is not None]
     if not recs:
         raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
-    rows, ys = [], []
+    rows, ys, used = [], [], []
     for rec in recs:
-        t, psi, e, i, x = _flux_data(rec)
+        data = _flux_data(rec, tables)
+        if data is None:
+            continue
+        t, psi, e, i, x = data
         y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
         cols = [e] + [_lowpass(e, t, tau) for tau in LADDER_TAUS_S]
         rows.append(np.column_stack(cols))
         ys.append(y)
+        used.append(rec)
+    if not rows:
+        raise ImproveError("eddy: not identifiable from these recordings: add fast 'eddy' triangles with a "
+                           "zero-current rest (for the voltage offset)")
     A, y = np.vstack(rows), np.concatenate(ys)
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-30)
     coef, _ = nnls(A / scale, y)
@@ -242,7 +290,7 @@ def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
         raise ImproveError("eddy: no ladder section with a share above 3 % (a single G_eddy explains the data)")
     section = {"G_S": [float(g) for g in Gk[keep]], "tau_s": [float(tau) for tau, k in zip(LADDER_TAUS_S, keep,
                                                                                           strict=True) if k]}
-    return section, {"fitted_on": [_name(r) for r in recs], "G_eddy_S": G0}
+    return section, {"fitted_on": [_name(r) for r in used], "G_eddy_S": G0}
 
 
 def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
@@ -258,6 +306,8 @@ def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
         dt = np.diff(t)
         energy = np.concatenate([[0.0], np.cumsum(dt * i[1:] ** 2)])  # int i^2 dt
         phi = alpha * R * R * np.concatenate([[0.0], np.cumsum(dt * i[1:] * energy[1:])])
+        if "psi_Wb" in c.detrended:
+            phi = detrend(phi, t)
         num += float(phi @ r)
         den += float(phi @ phi)
         used.append(c.name)
@@ -341,14 +391,24 @@ def _cases(tables, recordings, progress=None):
 
 
 def _error(cases, names) -> float:
-    """Mean over recordings in ``names`` and their signals of the squared NRMSE (range-normalized)."""
+    """Mean over recordings in ``names`` and their signals of the squared full-scale NRMSE.
+
+    Each residual's RMS is divided by the signal's full scale for the recording's kind and capped
+    at 1 (:func:`solenoid_fmu.validate.full_scales`, computed over all ``cases``), so that no
+    single recording whose signal hardly changes can dominate the gate.
+    """
+    from .validate import full_scales, nrmse_fs
+
+    fs = full_scales(cases)
     vals = []
     for c in cases:
         if c.name not in names:
             continue
         for sig, r in c.residuals.items():
-            span = float(np.ptp(c.measured[sig])) or 1.0
-            vals.append(float(np.mean(r**2)) / span**2)
+            r = np.asarray(r, dtype=float)
+            rms = float(np.sqrt(np.mean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any() else None
+            v = nrmse_fs(rms, fs[(c.kind, sig)])
+            vals.append(1.0 if v is None else v * v)
     return float(np.mean(vals)) if vals else 0.0
 
 
@@ -455,8 +515,9 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
     dict
         ``{"effects_added": [...], "steps": [...], "fmu": ..., "improved_fmu": ..., "maps": ...,
         "recordings": [{"file", "split", "signals": {signal: {"before", "after", "before_nrmse",
-        "after_nrmse"}}}], "before": validation dict, "after": validation dict}``; before/after are
-        RMS errors in the signal's unit from the FMUs (fmpy).
+        "after_nrmse", "before_nrmse_fs", "after_nrmse_fs"}}}], "before": validation dict, "after":
+        validation dict}``; before/after are RMS errors in the signal's unit from the FMUs (fmpy),
+        ``*_nrmse`` by the recording's range, ``*_nrmse_fs`` by the full scale per kind.
     """
     from .fmu import build_fmu
     from .recordings import Recording, read_recording
@@ -486,7 +547,8 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
         for name, m in rb["signals"].items():
             a = ra["signals"].get(name, {})
             sig[name] = {"before": m.get("rms"), "after": a.get("rms"), "before_nrmse": m.get("nrmse"),
-                         "after_nrmse": a.get("nrmse")}
+                         "after_nrmse": a.get("nrmse"), "before_nrmse_fs": m.get("nrmse_fs"),
+                         "after_nrmse_fs": a.get("nrmse_fs")}
         rows.append({"file": rb["file"], "split": "fit" if rb["file"] in fit_names else "validate", "signals": sig})
     result = {"fmu": str(fmu_path), "improved_fmu": str(out_fmu), "maps": str(maps_dir),
               "effects_added": [s.effect for s in steps if s.accepted], "steps": [s.as_dict() for s in steps],

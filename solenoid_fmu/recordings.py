@@ -748,7 +748,7 @@ def _float_texts(values: np.ndarray, digits: int | None) -> list[str]:
     return [f"{v:.{digits}g}" for v in values.tolist()]
 
 
-def write_recording(path, rec: Recording, *, digits: int | None = None) -> Path:
+def write_recording(path, rec: Recording, *, digits: int | None = None, columns=None) -> Path:
     """Write a recording file (format v1) atomically: a temporary file, then a rename.
 
     Parameters
@@ -762,6 +762,9 @@ def write_recording(path, rec: Recording, *, digits: int | None = None) -> Path:
         Significant digits per number (``%.{digits}g``) to keep files small. By default every
         float is written with its shortest exact ``repr``, so reading the file back gives an
         identical :class:`Recording` (positions: ``float(mm) / 1000`` gives back ``position_m``).
+    columns : sequence of str, optional
+        Column order: a permutation of the columns the recording holds (the format allows any
+        order); default ``time_s, voltage_V, current_A, position_mm, force_N, extra...``.
 
     Returns
     -------
@@ -791,13 +794,20 @@ def write_recording(path, rec: Recording, *, digits: int | None = None) -> Path:
     if rec.force_N is not None:
         cols.append(("force_N", _float_texts(rec.force_N, digits)))
     cols += [(name, _float_texts(arr, digits)) for name, arr in rec.extra.items()]
+    time_texts = cols[0][1]
+    if columns is not None:
+        by_name = dict(cols)
+        if sorted(columns) != sorted(by_name):
+            raise RecordingError(str(path), [f"columns {list(columns)} are not an order of the recording's "
+                                             f"columns {list(by_name)}"])
+        cols = [(name, by_name[name]) for name in columns]
     if digits is not None:
-        t = np.array([float(s) for s in cols[0][1]])
+        t = np.array([float(s) for s in time_texts])
         bad = np.flatnonzero(np.diff(t) <= 0)
         if bad.size:
             raise RecordingError(str(path), [
                 f"with {digits} digits the time of samples {bad[0]} and {bad[0] + 1} "
-                f"becomes equal ({cols[0][1][bad[0]]}); use more digits"])
+                f"becomes equal ({time_texts[bad[0]]}); use more digits"])
     out = io.StringIO()
     for key, value in rec.header.items():
         out.write(f"# {key}: {value}\n" if value else f"# {key}:\n")
@@ -883,6 +893,15 @@ class FluxResult:
         Mean of that difference over the current grid [Wb].
     notes : list of str
         Warnings (no rest phase, resistance from closure, ...).
+    starts_at_rest : bool
+        The current is zero (within the rest threshold) at the first sample. Only then is
+        ``psi_Wb`` (zero at the first sample) an absolute flux linkage of a demagnetized coil;
+        otherwise it is the flux *change* since the first sample, with an unknown integration
+        constant Psi(0).
+    offset_measured : bool
+        A zero-current rest phase at the start or end gave the voltage offset. Without one, the
+        integral drifts by (unknown offset) x t and only its part orthogonal to a linear trend
+        carries information.
     """
 
     time_s: np.ndarray
@@ -902,6 +921,8 @@ class FluxResult:
     hysteresis_width_Wb: float
     hysteresis_mean_width_Wb: float
     notes: list[str] = field(default_factory=list)
+    starts_at_rest: bool = True
+    offset_measured: bool = True
 
     def summary(self) -> dict:
         """The CLI's JSON object: numbers in SI, NaN as None."""
@@ -920,6 +941,8 @@ class FluxResult:
             "hysteresis_mean_width_Wb": num(self.hysteresis_mean_width_Wb),
             "n_peaks": len(self.branches) // 2,
             "notes": list(self.notes),
+            "starts_at_rest": self.starts_at_rest,
+            "offset_measured": self.offset_measured,
         }
 
 
@@ -1108,6 +1131,9 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
     offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
     i, i_s = ic, i_s - i_off
 
+    if abs(float(i_s[0])) > thr:
+        notes.append(f"the recording starts energized ({float(i_s[0]):.4g} A): Psi is the change since the "
+                     "first sample (its integration constant Psi(0) is not measured)")
     branches = _split_branches(i, i_s, psi, thr, k_smooth)
     grid = np.linspace(0.0, max((br.peak_A for br in branches), default=0.0), n_points)
     mean_curves, widths = _peak_curves(branches, grid)
@@ -1139,7 +1165,9 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
                       current_offset_A=i_off, branches=branches,
                       peak_current_A=float(peak_A), psi_at_peak_Wb=psi_peak, commutation_i_A=com_i,
                       commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
-                      hysteresis_mean_width_Wb=width_mean, notes=notes)
+                      hysteresis_mean_width_Wb=width_mean, notes=notes,
+                      starts_at_rest=bool(abs(float(i_s[0])) <= thr),
+                      offset_measured=head is not None or tail is not None)
 
 
 def _split_branches(i, i_s, psi, thr, k) -> list[FluxBranch]:
@@ -1151,13 +1179,15 @@ def _split_branches(i, i_s, psi, thr, k) -> list[FluxBranch]:
         return []
     peaks, _ = find_peaks(i_s, prominence=0.2 * i_top)
     n = i.size
+    # each peak refined to the highest smoothed sample within +-k; two peaks that refine onto each
+    # other (or cross) count once, so that every valley between two peaks is a non-empty range
+    refined = sorted({max(0, p - k) + int(np.argmax(i_s[max(0, p - k):min(n, p + k + 1)])) for p in peaks.tolist()})
     branches: list[FluxBranch] = []
-    for j, p in enumerate(peaks.tolist()):
+    for j, p in enumerate(refined):
         lo, hi = max(0, p - k), min(n, p + k + 1)
-        p = lo + int(np.argmax(i_s[lo:hi]))
         peak_A = float(np.max(i[lo:hi]))
-        left = 0 if j == 0 else int(peaks[j - 1]) + int(np.argmin(i_s[peaks[j - 1]:p]))
-        right = n - 1 if j == len(peaks) - 1 else p + int(np.argmin(i_s[p:int(peaks[j + 1])]))
+        left = 0 if j == 0 else refined[j - 1] + int(np.argmin(i_s[refined[j - 1]:p]))
+        right = n - 1 if j == len(refined) - 1 else p + int(np.argmin(i_s[p:refined[j + 1]]))
         # leave the flat valley out: the branch starts where the current leaves the valley level
         low_left = np.flatnonzero(i_s[left:p] <= i_s[left] + thr)
         start = left + (int(low_left[-1]) if low_left.size else 0)

@@ -96,6 +96,7 @@ __all__ = [
     "measure",
     "read_truth",
     "run_campaign",
+    "run_excitations",
 ]
 
 #: Names of the switchable effects (CLI ``--effects``).
@@ -249,6 +250,9 @@ class DataAcquisition:
         Full-scale ranges (+-) [V], [A], [N].
     position_resolution_m : float
         Resolution of the position encoder [m].
+    force_gain, force_offset_N : float
+        Calibration error of the force sensor: measured = gain * true + offset [1], [N]
+        (a sensor fault; 1 and 0 for a calibrated sensor).
     """
 
     voltage_noise_V: float = 3e-3
@@ -262,13 +266,16 @@ class DataAcquisition:
     current_range_A: float = 5.0
     force_range_N: float = 100.0
     position_resolution_m: float = 1e-6
+    force_gain: float = 1.0
+    force_offset_N: float = 0.0
 
     def __post_init__(self):
         for name in ("voltage_noise_V", "current_noise_A", "force_noise_N", "position_noise_m"):
             _positive(name, getattr(self, name), allow_zero=True)
         for name in ("voltage_range_V", "current_range_A", "force_range_N", "position_resolution_m"):
             _positive(name, getattr(self, name))
-        for name in ("voltage_offset_V", "current_offset_A"):
+        _positive("force_gain", self.force_gain)
+        for name in ("voltage_offset_V", "current_offset_A", "force_offset_N"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v)):
                 raise RigError(f"{name} must be a finite number, got {v!r}")
@@ -376,6 +383,21 @@ class Excitation:
         the header value).
     notes : str
         The recording's ``notes`` header.
+    preroll_s : float
+        Unrecorded lead-in [s]: the truth ramps the reference from zero to its first value over the
+        first half of ``preroll_s`` and holds it, and recording starts after it, so the file begins
+        energized (a force-stroke bench at constant current before the carriage moves). Rounded to
+        whole sample periods.
+    voltage_offset_V : float
+        Offset of this recording's voltage channel [V] on top of the DAQ's.
+    current_delay_s : float
+        Delay of the current channel against the voltage channel [s] (the current samples are
+        the true current at ``t - current_delay_s``).
+    columns : tuple of str
+        Column order of the file (a permutation of the columns it holds); empty: the default order.
+    header_keys : tuple of str, optional
+        Optional header keys written (``coil_resistance_ohm``, ``coil_temperature_C``,
+        ``sample_rate_Hz``, ``notes``); None: all.
     """
 
     name: str
@@ -390,6 +412,11 @@ class Excitation:
     with_force: bool = False
     position_column: bool = False
     notes: str = ""
+    preroll_s: float = 0.0
+    voltage_offset_V: float = 0.0
+    current_delay_s: float = 0.0
+    columns: tuple = ()
+    header_keys: tuple | None = None
 
     @property
     def duration_s(self) -> float:
@@ -673,6 +700,9 @@ class TruthModel:
                  demagnetize: bool = True) -> TruthResult:
         """Run one excitation on the truth and return the true signals at the sample times.
 
+        With ``exc.preroll_s > 0`` the unrecorded lead-in (see :class:`Excitation`) is simulated
+        first and its samples are dropped: the result starts energized at time 0.
+
         Parameters
         ----------
         exc : Excitation
@@ -689,6 +719,8 @@ class TruthModel:
         -------
         TruthResult
         """
+        if exc.preroll_s > 0.0:
+            return self._simulate_with_preroll(exc, cfg, T_start_C, demagnetize)
         cfg = cfg or CampaignConfig()
         tab = self.tables
         T = cfg.ambient_C if T_start_C is None else float(T_start_C)
@@ -835,6 +867,24 @@ class TruthModel:
                            i_hyst_A=out["ih"], i_eddy_A=out["ie"], temperature_C=out["T"],
                            resistance_start_ohm=R_start, temperature_start_C=T0, temperature_end_C=T)
 
+    def _simulate_with_preroll(self, exc: Excitation, cfg, T_start_C, demagnetize) -> TruthResult:
+        """:meth:`simulate` of an excitation with a lead-in: simulate it, then drop its samples."""
+        fs = exc.sample_rate_Hz
+        n_pre = max(1, math.ceil(exc.preroll_s * fs - 1e-9))
+        pre = n_pre / fs
+        shift = tuple(float(t) + pre for t in exc.ref_t_s)
+        moving = len(exc.pos_m) > 1
+        ext = dataclasses.replace(
+            exc, ref_t_s=(0.0, 0.5 * pre, *shift), ref_values=(0.0, exc.ref_values[0], *exc.ref_values),
+            pos_t_s=(0.0, *(float(t) + pre for t in exc.pos_t_s)) if moving else exc.pos_t_s,
+            pos_m=(exc.pos_m[0], *exc.pos_m) if moving else exc.pos_m, preroll_s=0.0)
+        res = self.simulate(ext, cfg, T_start_C, demagnetize)
+        n = exc.times_s().size
+        cut = {f.name: getattr(res, f.name)[n_pre:n_pre + n] for f in dataclasses.fields(res)
+               if isinstance(getattr(res, f.name), np.ndarray)}
+        cut["time_s"] = exc.times_s()[:cut["current_A"].size]
+        return dataclasses.replace(res, **cut)
+
 
 # --------------------------------------------------------------------------------------------
 # Data acquisition and files
@@ -869,24 +919,29 @@ def measure(truth: TruthResult, exc: Excitation, daq: DataAcquisition | None, rn
     """
     n = truth.time_s.size
     u, i, f, x = truth.voltage_V.copy(), truth.current_A.copy(), truth.force_N.copy(), truth.position_m.copy()
+    if exc.current_delay_s:
+        i = np.interp(truth.time_s - exc.current_delay_s, truth.time_s, i)
+    u = u + exc.voltage_offset_V
     if daq is not None:
         u = u + daq.voltage_offset_V + rng.normal(0.0, daq.voltage_noise_V, n)
         i = i + daq.current_offset_A + rng.normal(0.0, daq.current_noise_A, n)
-        f = f + rng.normal(0.0, daq.force_noise_N, n)
+        f = daq.force_gain * f + daq.force_offset_N + rng.normal(0.0, daq.force_noise_N, n)
         x = x + rng.normal(0.0, daq.position_noise_m, n)
         levels = 2.0 ** daq.adc_bits
         u = _quantize(np.clip(u, -daq.voltage_range_V, daq.voltage_range_V), 2 * daq.voltage_range_V / levels)
         i = _quantize(np.clip(i, -daq.current_range_A, daq.current_range_A), 2 * daq.current_range_A / levels)
         f = _quantize(np.clip(f, -daq.force_range_N, daq.force_range_N), 2 * daq.force_range_N / levels)
         x = _quantize(x, daq.position_resolution_m)
+    header = {"coil_resistance_ohm": round(truth.resistance_start_ohm, 4),
+              "coil_temperature_C": round(truth.temperature_start_C, 1),
+              "sample_rate_Hz": exc.sample_rate_Hz, "notes": exc.notes}
+    if exc.header_keys is not None:
+        header = {k: (v if k in exc.header_keys else None) for k, v in header.items()}
     return make_recording(
         exc.kind, solenoid, truth.time_s, i,
         voltage_V=u if exc.with_voltage else None,
         force_N=f if exc.with_force else None,
-        position_m=x if exc.position_column else float(exc.pos_m[0]),
-        coil_resistance_ohm=round(truth.resistance_start_ohm, 4),
-        coil_temperature_C=round(truth.temperature_start_C, 1),
-        sample_rate_Hz=exc.sample_rate_Hz, notes=exc.notes)
+        position_m=x if exc.position_column else float(exc.pos_m[0]), **header)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1016,23 +1071,43 @@ def run_campaign(tables: MapTables, output_dir, effects: Effects | None = None,
     RigTruth
         What was written to ``truth.json``.
     """
+    cfg = campaign or CampaignConfig()
+    return run_excitations(tables, output_dir, campaign_excitations(cfg), effects=effects, campaign=cfg, seed=seed,
+                           material_path=material_path, maps_dir=maps_dir, progress=progress)
+
+
+def run_excitations(tables: MapTables, output_dir, excitations, *, effects: Effects | None = None,
+                    campaign: CampaignConfig | None = None, seed: int | None = 0, file_names=None,
+                    material_path=None, maps_dir=None, progress: bool = False, derived: dict | None = None
+                    ) -> RigTruth:
+    """Run the given excitations on the truth, in order, and write the recordings and ``truth.json``.
+
+    The coil cools for ``campaign.pause_s`` between recordings. ``file_names`` (one per
+    excitation) default to ``NN_<name>.csv``; ``derived`` adds entries to the truth's ``derived``.
+    Column order and optional header keys come from each :class:`Excitation`. See
+    :func:`run_campaign` for the other parameters.
+    """
     out = Path(output_dir)
     rec_dir = out / "recordings"
     rec_dir.mkdir(parents=True, exist_ok=True)
     effects = effects or Effects()
     cfg = campaign or CampaignConfig()
+    excitations = list(excitations)
+    if file_names is None:
+        file_names = [f"{n:02d}_{exc.name}.csv" for n, exc in enumerate(excitations, start=1)]
+    if len(file_names) != len(excitations) or len(set(file_names)) != len(file_names):
+        raise RigError("file_names must be one distinct name per excitation")
     model = TruthModel(tables, effects)
     rng = np.random.default_rng(seed)
     T = cfg.ambient_C
     entries = []
-    for n, exc in enumerate(campaign_excitations(cfg), start=1):
+    for n, (exc, name) in enumerate(zip(excitations, file_names, strict=True), start=1):
         if n > 1:
             T = model.cool(T, cfg.pause_s, cfg.ambient_C)
         res = model.simulate(exc, cfg, T_start_C=T)
         T = res.temperature_end_C
         rec = measure(res, exc, effects.daq, rng, solenoid=cfg.solenoid)
-        name = f"{n:02d}_{exc.name}.csv"
-        write_recording(rec_dir / name, rec, digits=FILE_DIGITS)
+        write_recording(rec_dir / name, rec, digits=FILE_DIGITS, columns=exc.columns or None)
         entries.append({"file": f"recordings/{name}", "kind": exc.kind,
                         "temperature_start_C": res.temperature_start_C, "temperature_end_C": res.temperature_end_C,
                         "resistance_start_ohm": res.resistance_start_ohm, "psi_end_Wb": float(res.psi_Wb[-1])})
@@ -1043,7 +1118,7 @@ def run_campaign(tables: MapTables, output_dir, effects: Effects | None = None,
         material = {"path": _rel(Path(material_path), out), "sha256": _sha256(Path(material_path))}
     derived = {"hysteresis_half_width_A": model.hysteresis_half_width_A,
                "eddy_G_low_rate_S": float(sum(effects.eddy.G_S)) if effects.eddy else None,
-               "resistance_20C_ohm": model.R20_ohm}
+               "resistance_20C_ohm": model.R20_ohm, **(derived or {})}
     truth = RigTruth(solenoid=cfg.solenoid, effects=effects, campaign=cfg, seed=seed, material=material,
                      maps=None if maps_dir is None else _rel(Path(maps_dir), out),
                      coil={"R20_ohm": model.R20_ohm, "alpha_per_K": model.alpha_per_K,

@@ -24,6 +24,14 @@ Metrics per recording and signal (:func:`signal_metrics`), with ``e = measured -
   measured signal is constant (zero range) ``nrmse`` is ``None`` (JSON ``null``): there is no scale
   to relate the error to, and a number would be arbitrary.
 
+* ``nrmse_fs`` = min(rms / FS, 1): the RMS error as a share of the signal's *full scale per
+  kind* (:func:`full_scales`): FS is the largest |measured| of that signal over the campaign's
+  recordings of the same kind, but at least :data:`FULL_SCALE_FLOOR` of its largest |measured|
+  over the whole campaign. Unlike ``nrmse`` it cannot blow up for a recording whose signal
+  hardly changes (a force-stroke at constant current has a flux range near zero), and the cap
+  at 1 keeps one broken recording from outweighing the others. The improve gate
+  (:func:`solenoid_fmu.improve._error`) and the reports' mean errors use it.
+
 Samples where the measured or simulated value is not finite are left out and counted
 (``n_excluded``); a simulation that is not finite anywhere gives ``None`` metrics.
 
@@ -55,6 +63,8 @@ __all__ = [
     "add_cli",
     "plot_overlay",
     "plot_residual",
+    "full_scales",
+    "nrmse_fs",
     "signal_metrics",
     "validate",
     "validate_cases",
@@ -69,8 +79,49 @@ SIGNAL_LABELS = {
 }
 
 
+#: A kind's full scale is at least this share of the signal's full scale over the whole campaign.
+FULL_SCALE_FLOOR = 0.1
+
+
 class ValidationError(SolenoidError):
     """Validation input is unusable (mismatched or empty signals, nothing to compare)."""
+
+
+def full_scales(cases) -> dict:
+    """Full scale per (kind, signal): max |measured| over the kind's recordings, floored.
+
+    Parameters
+    ----------
+    cases : list of solenoid_fmu.diagnose.ResidualCase
+        The campaign's residual cases (``kind``, ``measured``).
+
+    Returns
+    -------
+    dict
+        ``{(kind, signal): FS}`` in the signal's SI unit, ``FS >= FULL_SCALE_FLOOR x`` the largest
+        |measured| of the signal over all cases (and > 0).
+    """
+    def peak(v):
+        v = np.asarray(v, dtype=float)
+        v = v[np.isfinite(v)]
+        return float(np.max(np.abs(v))) if v.size else 0.0
+
+    per_kind: dict = {}
+    campaign: dict = {}
+    for c in cases:
+        for sig, meas in c.measured.items():
+            m = peak(meas)
+            key = (getattr(c, "kind", ""), sig)
+            per_kind[key] = max(per_kind.get(key, 0.0), m)
+            campaign[sig] = max(campaign.get(sig, 0.0), m)
+    return {key: max(v, FULL_SCALE_FLOOR * campaign[key[1]], 1e-300) for key, v in per_kind.items()}
+
+
+def nrmse_fs(rms, full_scale: float):
+    """``min(rms / full_scale, 1)`` [1], or None without an rms (see the module docstring)."""
+    if rms is None:
+        return None
+    return min(float(rms) / full_scale, 1.0)
 
 
 
@@ -119,16 +170,20 @@ def signal_metrics(measured, simulated) -> dict:
 
 
 def _summary(recordings: list[dict]) -> dict:
-    """Per signal: mean and max nrmse over the recordings that have it."""
+    """Per signal: mean and max nrmse and nrmse_fs over the recordings that have it."""
     out = {}
     for rec in recordings:
         for sig, met in rec["signals"].items():
-            out.setdefault(sig, []).append(met.get("nrmse"))
+            out.setdefault(sig, []).append(met)
     summary = {}
-    for sig, vals in out.items():
-        good = [v for v in vals if v is not None]
-        summary[sig] = {"nrmse_mean": float(np.mean(good)) if good else None,
-                        "nrmse_max": float(np.max(good)) if good else None, "n_recordings": len(vals)}
+    for sig, mets in out.items():
+        entry = {}
+        for key in ("nrmse", "nrmse_fs"):
+            good = [m.get(key) for m in mets if m.get(key) is not None]
+            entry[f"{key}_mean"] = float(np.mean(good)) if good else None
+            entry[f"{key}_max"] = float(np.max(good)) if good else None
+        entry["n_recordings"] = len(mets)
+        summary[sig] = entry
     return summary
 
 
@@ -148,9 +203,11 @@ def validate_cases(cases) -> dict:
     -------
     dict
         ``{"recordings": [{"file", "kind", "drive", "signals": {signal: metrics}}, ...],
-        "summary": {signal: {"nrmse_mean", "nrmse_max", "n_recordings"}}}``; metrics from
-        :func:`signal_metrics`, signals keyed ``force_N``, ``psi_Wb``, ``current_A``.
+        "summary": {signal: {"nrmse_mean", "nrmse_max", "nrmse_fs_mean", "nrmse_fs_max",
+        "n_recordings"}}}``; metrics from :func:`signal_metrics` plus ``nrmse_fs`` (full scale
+        per kind, :func:`full_scales`), signals keyed ``force_N``, ``psi_Wb``, ``current_A``.
     """
+    fs = full_scales(cases)
     recordings = []
     for c in cases:
         signals = {}
@@ -162,6 +219,7 @@ def validate_cases(cases) -> dict:
             if meas.shape != res.shape:
                 raise ValidationError(f"{c.name}: {sig}: {meas.size} measured vs {res.size} residual samples")
             signals[sig] = signal_metrics(meas, meas - res)
+            signals[sig]["nrmse_fs"] = nrmse_fs(signals[sig]["rms"], fs[(getattr(c, "kind", ""), sig)])
         entry = {"file": c.name, "kind": getattr(c, "kind", ""), "drive": getattr(c, "drive", ""),
                  "signals": signals}
         if getattr(c, "path", ""):
