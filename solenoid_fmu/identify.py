@@ -795,6 +795,24 @@ def _as_curve(material) -> BHCurve:
     return material
 
 
+def _absolute_flux(recs) -> tuple[list, list[str]]:
+    """The flux recordings whose eq.-4 flux is absolute (start at zero current, a rest for the
+    voltage offset), and a reason for each one left out."""
+    from .recordings import flux_linkage
+
+    keep, reasons = [], []
+    for rec in recs:
+        fr = flux_linkage(rec)
+        if not fr.starts_at_rest:
+            reasons.append(f"{rec._where()}: starts energized ({fr.current_A[0]:.4g} A), its flux has an unknown "
+                           "integration constant")
+        elif not fr.offset_measured:
+            reasons.append(f"{rec._where()}: no zero-current rest, the voltage offset of eq. 4 is unknown")
+        else:
+            keep.append(rec)
+    return keep, reasons
+
+
 def _group_flux(recs) -> tuple[list, list[list]]:
     """Flux recordings grouped by stroke (1 um); the identification group first: the most
     recordings, then the highest peak current."""
@@ -946,6 +964,11 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
         raise RecordingError("identify", [f"no 'flux' recording among {len(paths)} file(s): "
                                           + ", ".join(f"{p.name} ({r.kind})"
                                                       for p, r in zip(paths, recs, strict=True))])
+    flux, unusable = _absolute_flux(flux)
+    if not flux:
+        raise RecordingError("identify", unusable)
+    for why in unusable:
+        print(f"identify: left out {why}", file=sys.stderr)
     geom = _as_geometry(geometry)
     start = _as_curve(start_material)
     mesh_size = DEFAULT_MESH_SIZE if mesh_size is None else float(mesh_size)

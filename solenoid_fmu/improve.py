@@ -12,7 +12,14 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
 3. fit its parameters on the *fit* part of the recordings (:func:`split_recordings`) by the
    effect's own regression (below), simulate all recordings with it and keep it only if the
    normalized error on the *validation* part falls by at least ``min_gain`` (default 10 %);
-4. repeat while an effect still pays, up to ``max_effects``.
+4. repeat while an effect still pays, up to ``max_effects``. An effect rejected in step 3 is
+   tried again after another effect was kept (the other one may have masked it: a large eddy
+   residual spoils the heating fit until the ladder is in the model).
+
+Campaigns from any rig: the fit/validation split and the diagnosis's cross-validation folds go
+by the size of the excitations, not by file names; the flux of a recording that starts energized
+is compared as a change from the model's flux at its first sample; the gate's error is the
+full-scale NRMSE per kind (:func:`_error`), so that no single recording can swing it.
 
 The effect sub-models live in ``model.py`` (their equations are in
 :meth:`solenoid_fmu.model.SolenoidModel._step_fx`); the improved FMU carries them as switchable
@@ -95,14 +102,71 @@ class Step:
 
 class Improvement(NamedTuple):
     """Outcome of :func:`improve_tables`: the model's maps with the kept effects, every tried
-    :class:`Step`, the diagnosis of each round (dicts), and the residual cases of the first and
-    the final model (in-process simulations of all recordings)."""
+    :class:`Step`, the diagnosis of each round (dicts), the residual cases of the first and
+    the final model (in-process simulations of all recordings), and for every addable effect the
+    campaign cannot identify, what to add (:func:`not_identifiable`)."""
 
     tables: _model.MapTables
     steps: list
     diagnoses: list
     cases_before: list
     cases_after: list
+    not_identifiable: dict = {}
+
+
+def _holds_current(rec, min_s: float = 0.2) -> bool:
+    """The current stays above half its peak for at least ``min_s`` [s] in total."""
+    i = np.abs(np.asarray(rec.current_A, dtype=float))
+    t = np.asarray(rec.time_s, dtype=float)
+    if i.size < 2 or float(np.max(i)) <= 0.0:
+        return False
+    on = i[1:] > 0.5 * float(np.max(i))
+    return float(np.sum(np.diff(t)[on])) >= min_s
+
+
+def _reverses(rec) -> bool:
+    """The armature moves there and back within the recording (by more than 5 % of its span)."""
+    from .diagnose import conditioned_position
+
+    x = conditioned_position(np.asarray(rec.positions_m(), dtype=float))
+    span = float(np.ptp(x))
+    if span <= 0.0:
+        return False
+    k = int(np.argmax(np.abs(x - x[0])))
+    return float(np.max(np.abs(x[k:] - x[k]))) > 0.05 * span
+
+
+def not_identifiable(recordings) -> dict:
+    """Addable effects the campaign cannot identify, each with what to add (see README).
+
+    ``hysteresis``: a current-driven ``flux`` (or ``ramp`` / ``eddy``) recording with voltage that
+    starts at zero current and rests there (absolute eq.-4 flux); ``eddy``: an ``eddy`` recording
+    with voltage and a zero-current rest; ``heating``: a recording with voltage, the resistance
+    measured before the run (header ``coil_resistance_ohm``) and the current held for >= 0.2 s;
+    ``friction``: a ``force_stroke`` recording in which the armature moves there and back.
+    """
+    from .recordings import flux_linkage
+
+    def absolute(rec):
+        if rec.voltage_V is None:
+            return False
+        fr = flux_linkage(rec)
+        return fr.starts_at_rest and fr.offset_measured
+
+    volt = [r for r in recordings if r.voltage_V is not None and r.kind != "voltage_step"]
+    out = {}
+    if not any(absolute(r) for r in volt if r.kind in ("flux", "ramp", "eddy")):
+        out["hysteresis"] = ("add a slow 'flux' recording with voltage: triangles from zero current with a "
+                             "zero-current rest (for the voltage offset)")
+    if not any(absolute(r) for r in volt if r.kind == "eddy"):
+        out["eddy"] = "add fast 'eddy' triangles (several rates) with voltage and a zero-current rest"
+    if not any(r.coil_resistance_ohm is not None and _holds_current(r) for r in volt):
+        out["heating"] = ("add a recording with voltage, the coil resistance measured before the run "
+                          "(# coil_resistance_ohm) and the current held for a while (a ramp with a hold, or a "
+                          "force stroke with voltage)")
+    if not any(r.kind == "force_stroke" and r.force_N is not None and _reverses(r) for r in recordings):
+        out["friction"] = "add a 'force_stroke' recording in which the carriage moves the armature there and back"
+    return out
 
 
 # -- tables with effects -------------------------------------------------------------------------
@@ -440,6 +504,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     steps: list[Step] = []
     diagnoses = []
     tried: set = set()
+    missing = not_identifiable(recordings)
+    for effect, what in missing.items():
+        say(f"{effect}: not identifiable from these recordings: {what}")
     cases = cases0 = _cases(tables, recordings, say)
     while sum(s.accepted for s in steps) < max_effects:
         d = diagnose(cases, threshold=threshold)
@@ -451,6 +518,10 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
             say("no further effect clears the diagnosis threshold")
             break
         tried.add(pick)
+        if pick in missing:
+            steps.append(Step(pick, False, note=f"not identifiable from these recordings: {missing[pick]}"))
+            say(f"{pick} is named by the diagnosis but not identifiable from these recordings: {missing[pick]}")
+            continue
         say(f"adding {pick} (diagnosis score {next(c.score for c in d.ranking if c.effect == pick):.3f})")
         fit_cases = [c for c in cases if c.name in fit_names]
         G_new = None
@@ -478,7 +549,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
         if ok:
             effects, tables, cases = trial_fx, trial, trial_cases
-    return Improvement(tables, steps, diagnoses, cases0, cases)
+            # an effect rejected before may have been masked by the one just added: it may be tried again
+            tried = {s.effect for s in steps if s.accepted}
+    return Improvement(tables, steps, diagnoses, cases0, cases, missing)
 
 
 def write_maps_dir(tables: _model.MapTables, fmu_path, dest_dir) -> Path:
@@ -528,7 +601,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
     if not recs:
         raise ImproveError("improve needs at least one recording")
     tables, _ = tables_from_fmu(fmu_path)
-    improved, steps, diagnoses, _, _ = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
+    improved, steps, diagnoses, _, _, missing = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
                                                       threshold=threshold, progress=say)
     out_fmu = Path(out_fmu)
     maps_dir = write_maps_dir(improved, fmu_path, out_fmu.with_suffix(".maps"))
@@ -552,6 +625,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
         rows.append({"file": rb["file"], "split": "fit" if rb["file"] in fit_names else "validate", "signals": sig})
     result = {"fmu": str(fmu_path), "improved_fmu": str(out_fmu), "maps": str(maps_dir),
               "effects_added": [s.effect for s in steps if s.accepted], "steps": [s.as_dict() for s in steps],
+              "not_identifiable": missing,
               "diagnoses": diagnoses, "recordings": rows, "before": before, "after": after}
     if report_dir is not None:
         from .fileio import atomic_write_text
@@ -597,10 +671,12 @@ def _cli(args) -> int:
     res = improve(args.fmu, args.recordings, args.output, report_dir=args.report, max_effects=args.max_effects,
                   min_gain=args.min_gain, progress=progress)
     if args.json:
-        out = {k: res[k] for k in ("effects_added", "steps", "recordings", "fmu", "improved_fmu")}
+        out = {k: res[k] for k in ("effects_added", "steps", "recordings", "fmu", "improved_fmu", "not_identifiable")}
         print(json.dumps(_jsonable(out)))
         return 0
     print(f"effects added: {', '.join(res['effects_added']) or 'none'}")
+    for effect, what in res["not_identifiable"].items():
+        print(f"{effect}: not identifiable from these recordings: {what}")
     print(f"{'file':<28} {'split':<9} {'signal':<10} {'rms before':>12} {'rms after':>12} {'ratio':>7}")
     for row in res["recordings"]:
         for sig, m in row["signals"].items():
@@ -612,5 +688,5 @@ def _cli(args) -> int:
 
 
 __all__ = ["ADDABLE", "ImproveError", "Improvement", "Step", "fit_eddy_ladder", "fit_friction", "fit_heating",
-           "fit_hysteresis", "heating_corrected",
-           "improve", "improve_tables", "split_recordings", "tables_from_fmu", "with_effects", "write_maps_dir"]
+           "fit_hysteresis", "heating_corrected", "improve", "improve_tables", "not_identifiable", "split_recordings",
+           "tables_from_fmu", "with_effects", "write_maps_dir"]

@@ -214,6 +214,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         "native_fmu": None if native is None else str(native), "improved_fmu": res["improved_fmu"],
         "improved_native_fmu": None if native_improved is None else str(native_improved),
         "improved_maps": res["maps"], "effects_added": res["effects_added"], "errors": errors,
+        "not_identifiable": res.get("not_identifiable", {}),
         "diagnosis": res["diagnoses"][0] if res["diagnoses"] else None, "improve_steps": res["steps"],
         "identification": ident_summary,
         "eddy": None if eddy is None else eddy.as_dict(), "recordings": [str(p) for p in paths],
@@ -240,7 +241,9 @@ def _write_report(path, name, summary, ident, res, before) -> Path:
         {"heading": "Summary",
          "text": (f"Campaign {summary['campaign']}: {len(summary['recordings'])} recordings. "
                   f"Effects added to the real-time model: {', '.join(summary['effects_added']) or 'none'}.\n\n"
-                  f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
+                  + "".join(f"{k}: not identifiable from these recordings: {v}\n"
+                            for k, v in summary["not_identifiable"].items())
+                  + f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
                   f"Identified material: {summary['material']}"),
          "table": _summary_table(summary)},
         {"heading": "B(H) identification",
@@ -307,6 +310,8 @@ def _cli(args) -> int:
         print(json.dumps(_jsonable(s)))
         return 0
     print(f"effects added: {', '.join(s['effects_added']) or 'none'}")
+    for effect, what in s["not_identifiable"].items():
+        print(f"{effect}: not identifiable from these recordings: {what}")
     print(f"{'file':<28} {'signal':<10} {'NRMSE(FS) before':>17} {'after':>9}")
     for e in s["errors"]:
         b = "n/a" if e["before_nrmse_fs"] is None else f"{e['before_nrmse_fs'] * 100:.3f} %"

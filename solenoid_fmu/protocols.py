@@ -13,7 +13,7 @@ protocol too. :func:`random_protocol` draws, from one seeded generator:
 * eddy recordings (2-4 rates): the same shapes, fast (half-cycles of 4-80 ms);
 * force-stroke recordings (2-3 currents): energized from the first sample (the coil at constant
   current before the carriage moves, an unrecorded lead-in, :attr:`Excitation.preroll_s`) or
-  with the current ramped inside the recording; the carriage starts at either end and moves
+  with the current ramped inside the recording; the carriage starts at one end, then the other, and moves
   there and back (the first recording always, so that friction shows a reversal) or one way;
   the voltage column is present or not;
 * a current ramp and a voltage step, each present or not;
@@ -30,6 +30,7 @@ seed reproduces.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -144,9 +145,10 @@ def _flux_like(rng, kind: str, n: int, x_fixed, i_max: float, max_samples: int, 
 def _force_strokes(rng, n: int, x_lo: float, x_hi: float, i_max: float, max_samples: int) -> list[Excitation]:
     out = []
     energized = rng.random() < 0.6
+    first_high = rng.random() < 0.5
     for k in range(n):
         cur = float(rng.uniform(0.3, 1.0) * i_max)
-        a, b = (x_hi, x_lo) if rng.random() < 0.5 else (x_lo, x_hi)
+        a, b = (x_hi, x_lo) if (k % 2 == 0) == first_high else (x_lo, x_hi)  # the carriage starts at both ends
         back = k == 0 or rng.random() < 0.75
         legs = [b, a] * int(rng.integers(1, 3)) if back else [b]
         speed = _loguniform(rng, 0.5e-3, 5e-3)
@@ -253,7 +255,19 @@ def random_protocol(rng: np.random.Generator, *, x_range_m: tuple, max_current_A
                                (0.0, r0, r0, t1, t1, end), (0.0, 0.0, volts, volts, 0.0, 0.0), (0.0,),
                                (float(positions(1)[0]),), notes=f"voltage step to {volts:.3g} V",
                                **_channels(rng, True, True, False)))
+    excs = [_within_budget(e, max_samples) for e in excs]
     return [excs[k] for k in rng.permutation(len(excs))]
+
+
+def _within_budget(exc: Excitation, max_samples: int) -> Excitation:
+    """``exc`` with at most ``max_samples`` samples: a lower sample rate (not below 500 Hz), then
+    faster (all knot times scaled down)."""
+    if exc.duration_s * exc.sample_rate_Hz + 1 <= max_samples:
+        return exc
+    fs = max(500.0, math.floor((max_samples - 2) / exc.duration_s))
+    k = min(1.0, (max_samples - 2) / (fs * exc.duration_s))
+    return dataclasses.replace(exc, sample_rate_Hz=float(fs), ref_t_s=tuple(t * k for t in exc.ref_t_s),
+                               pos_t_s=tuple(t * k for t in exc.pos_t_s), preroll_s=exc.preroll_s * k)
 
 
 def random_campaign(tables: MapTables, output_dir, effects: str | Effects = "", seed: int = 0, *,

@@ -982,23 +982,40 @@ def _rest_runs(i_s: np.ndarray, thr_A: float, min_len: int) -> tuple[slice | Non
     return head, tail
 
 
+def _stationary(u: np.ndarray, u_scale: float) -> bool:
+    """True when the two halves of a rest phase's voltage agree within 5 standard errors or within
+    0.1 % of the recording's largest voltage ``u_scale`` [V] (a slow offset drift of the DAQ).
+
+    A rest phase right after an excitation may still carry an induced voltage that decays (eddy
+    currents, a hysteresis creeping to remanence): such a phase does not give the offset.
+    """
+    n = u.size // 2
+    if n < 4:
+        return True
+    a, b = u[:n], u[-n:]
+    se = math.sqrt((float(np.var(a)) + float(np.var(b))) / n)
+    return abs(float(np.mean(a)) - float(np.mean(b))) <= max(5.0 * se, 1e-3 * u_scale, 1e-12)
+
+
 def _offset_model(t, u, head, tail):
-    """Voltage offset (a, b, t0): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V].
+    """Voltage offset (a, b, t0, n): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V]
+    over the ``n`` (0-2) rest phases used.
 
     U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
+    A rest phase whose voltage is still settling (:func:`_stationary`) is not used.
     """
     from scipy.stats import trim_mean
 
     anchors = []
     for sl in (head, tail):
-        if sl is not None and sl.stop - sl.start > 0:
+        if sl is not None and sl.stop - sl.start > 0 and _stationary(u[sl], float(np.max(np.abs(u)))):
             anchors.append((float(np.median(t[sl])), float(trim_mean(u[sl], 0.1))))
     if not anchors:
-        return 0.0, 0.0, float(t[0])
+        return 0.0, 0.0, float(t[0]), 0
     if len(anchors) == 1:
-        return anchors[0][1], 0.0, anchors[0][0]
+        return anchors[0][1], 0.0, anchors[0][0], 1
     (t0, a0), (t1, a1) = anchors
-    return a0, (a1 - a0) / (t1 - t0), t0
+    return a0, (a1 - a0) / (t1 - t0), t0, 2
 
 
 def _plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
@@ -1090,7 +1107,10 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
         R, method = None, None
 
     # voltage offset (with drift) from the rest phases; current-sensor offset only if significant
-    a, b, t0 = _offset_model(t, u, head, tail)
+    a, b, t0, n_anchors = _offset_model(t, u, head, tail)
+    if n_anchors == 0 and (head is not None or tail is not None):
+        notes.append("the zero-current rest phases still carry a settling induced voltage: no voltage offset "
+                     "removed")
     offset = a + b * (t - t0)
     uc = u - offset
     i_off = 0.0
@@ -1167,7 +1187,7 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
                       commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
                       hysteresis_mean_width_Wb=width_mean, notes=notes,
                       starts_at_rest=bool(abs(float(i_s[0])) <= thr),
-                      offset_measured=head is not None or tail is not None)
+                      offset_measured=n_anchors > 0)
 
 
 def _split_branches(i, i_s, psi, thr, k) -> list[FluxBranch]:
@@ -1289,7 +1309,8 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     Raises
     ------
     RecordingError
-        No recordings, a kind other than ``flux``, different solenoids or strokes, no peak.
+        No recordings, a kind other than ``flux``, different solenoids or strokes, no peak, a
+        recording that starts energized or has no zero-current rest (its eq.-4 flux is not absolute).
 
     Notes
     -----
@@ -1318,6 +1339,15 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     if problems:
         raise RecordingError("commutation_curve", problems)
     results = [flux_linkage(rec, resistance_ohm, n_points=n_points) for rec in recordings]
+    for rec, res in zip(recordings, results, strict=True):
+        if not res.starts_at_rest:
+            problems.append(f"{rec._where()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "
+                            "up to the integration constant Psi(0); a flux recording must start at zero current")
+        elif not res.offset_measured:
+            problems.append(f"{rec._where()}: no zero-current rest at the start or end: the voltage offset of "
+                            "eq. 4 cannot be measured (add a rest of >= 10 ms)")
+    if problems:
+        raise RecordingError("commutation_curve", problems)
     branches = [br for res in results for br in res.branches]
     if not branches:
         raise RecordingError("commutation_curve", ["no current peak in any recording"])
