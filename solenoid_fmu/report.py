@@ -254,14 +254,15 @@ def errors_table(before: dict, after: dict | None = None) -> dict:
         ``file, signal, rms before, rms after, ratio (after/before)``, one row per recording and
         signal found in either result (matched by ``file``, in the order of ``before`` then new
         ones of ``after``); a value missing on one side is ``None``, as is the ratio then or
-        when the rms before is zero. Without ``after``: columns ``file, signal, rms, max, nrmse``.
+        when the rms before is zero. Without ``after``: columns ``file, signal, rms, max, nrmse,
+        nrmse_fs`` (range-normalized and full-scale-per-kind NRMSE, see :mod:`solenoid_fmu.validate`).
         rms and max are in the signal's SI unit (see the signal name).
     """
     b = _rows_by_file(before)
     if after is None:
-        rows = [[f, sig, m.get("rms"), m.get("max"), m.get("nrmse")] for f, sigs in b.items()
+        rows = [[f, sig, m.get("rms"), m.get("max"), m.get("nrmse"), m.get("nrmse_fs")] for f, sigs in b.items()
                 for sig, m in sigs.items()]
-        return {"columns": ["file", "signal", "rms", "max", "nrmse"], "rows": rows}
+        return {"columns": ["file", "signal", "rms", "max", "nrmse", "nrmse_fs"], "rows": rows}
     a = _rows_by_file(after)
     files = list(b) + [f for f in a if f not in b]
     rows = []

@@ -119,7 +119,7 @@ def test_cell_format(value, text, num):
 
 def _result(values):
     """A validation result {file: {signal: rms}}."""
-    return {"recordings": [{"file": f, "signals": {s: {"rms": r, "max": 2 * r, "nrmse": r / 10}
+    return {"recordings": [{"file": f, "signals": {s: {"rms": r, "max": 2 * r, "nrmse": r / 10, "nrmse_fs": r / 20}
                                                     for s, r in sig.items()}} for f, sig in values.items()]}
 
 
@@ -140,8 +140,8 @@ def test_errors_table_of_one_result_and_a_section(tmp_path, png):
     res = _result({"a.csv": {"force_N": 2.0}})
     res["figures"] = [str(png)]
     t = errors_table(res)
-    assert t["columns"] == ["file", "signal", "rms", "max", "nrmse"]
-    assert t["rows"] == [["a.csv", "force_N", 2.0, 4.0, 0.2]]
+    assert t["columns"] == ["file", "signal", "rms", "max", "nrmse", "nrmse_fs"]
+    assert t["rows"] == [["a.csv", "force_N", 2.0, 4.0, 0.2, 0.1]]
     sec = validation_section(res, "Validation", "text")
     out = write_html_report(tmp_path / "v.html", "v", [sec]).read_text()
     assert out.count("data:image/png;base64,") == 1 and re.search(r">a\.csv<", out)
