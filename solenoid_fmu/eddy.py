@@ -84,6 +84,10 @@ def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
     if rec.voltage_V is None:
         raise SolenoidError(f"{rec.path}: an eddy fit needs a voltage_V column (paper eq. 4)")
     fl = flux_linkage(rec)
+    if not fl.starts_at_rest or not fl.offset_measured:
+        raise SolenoidError(f"{rec.path}: the eddy fit needs the absolute eq.-4 flux: the recording must start at "
+                            "zero current and rest there (or at the end) for >= 10 ms "
+                            f"({'starts energized' if not fl.starts_at_rest else 'no usable zero-current rest'})")
     t = np.asarray(rec.time_s, dtype=float)
     psi = np.asarray(fl.psi_Wb, dtype=float)
     e = np.gradient(psi, t)
@@ -114,13 +118,21 @@ def fit_eddy(recordings, maps) -> EddyFit:
     bad = [str(r.path) for r in recs if r.kind != "eddy"]
     if bad:
         raise SolenoidError(f"not eddy recordings: {', '.join(bad)}")
-    per, E, Y = [], [], []
+    per, E, Y, left_out = [], [], [], []
     for rec in recs:
-        e, y, rate = eddy_samples(rec, maps)
+        try:
+            e, y, rate = eddy_samples(rec, maps)
+        except SolenoidError as exc:
+            if "absolute eq.-4 flux" not in str(exc):
+                raise
+            left_out.append(str(exc))
+            continue
         g, r2 = _fit_origin(e, y)
         per.append({"file": rec.path.name if rec.path else "", "rate_A_per_s": rate, "G_eddy_S": g, "r2": r2})
         E.append(e)
         Y.append(y)
+    if not E:
+        raise SolenoidError("no eddy recording can be used: " + "; ".join(left_out))
     g, r2 = _fit_origin(np.concatenate(E), np.concatenate(Y))
     gs = np.array([p["G_eddy_S"] for p in per])
     spread = float(np.ptp(gs) / abs(g)) if len(gs) > 1 and g != 0 else 0.0
@@ -135,6 +147,8 @@ def fit_eddy(recordings, maps) -> EddyFit:
         trend = ", ".join(f"{per[k]['rate_A_per_s']:.3g} A/s: {per[k]['G_eddy_S'] * 1e3:.3g} mS" for k in order)
         msg = (f"a single G_eddy is a poor fit (spread {spread:.0%} over the rates, pooled R^2 {r2:.3f}): "
                f"{trend}; the eddy currents have more than one time constant")
+    if left_out:
+        msg += f"; left out {len(left_out)} recording(s): " + "; ".join(left_out)
     return EddyFit(g, r2, per, ok, msg)
 
 

@@ -342,3 +342,24 @@ def test_not_identifiable_names_what_to_add(rig_campaign, rig_maps):
     assert "friction" not in [s.effect for s in res.steps if s.accepted]
     assert res.not_identifiable.keys() == {"friction"}
     assert all("not identifiable" in s.note for s in res.steps if s.effect == "friction")
+
+
+def test_eddy_fit_leaves_out_recordings_without_absolute_flux(rig_maps, rig_campaign):
+    from solenoid_fmu.eddy import fit_eddy
+    from solenoid_fmu.errors import SolenoidError
+    from solenoid_fmu.maps import load_maps
+
+    maps = load_maps(rig_maps[1])
+    eddy = [read_recording(p) for p in rig_campaign("") if "eddy" in p]
+    good = fit_eddy(eddy, maps)
+    late = eddy[0]
+    k = int(np.argmax(late.current_A))  # starts at the first peak: energized, no rest at the start
+    cut = make_recording("eddy", late.solenoid, late.time_s[k:] - late.time_s[k], late.current_A[k:],
+                         voltage_V=late.voltage_V[k:], position_m=late.header_position_m,
+                         coil_resistance_ohm=late.coil_resistance_ohm)
+    fit = fit_eddy([cut, *eddy[1:]], maps)
+    assert "left out 1 recording" in fit.message and "starts energized" in fit.message
+    assert len(fit.per_recording) == len(eddy) - 1
+    assert fit.G_eddy_S == pytest.approx(good.G_eddy_S, rel=0.2)
+    with pytest.raises(SolenoidError, match="no eddy recording can be used"):
+        fit_eddy([cut], maps)
