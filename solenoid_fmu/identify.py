@@ -868,6 +868,9 @@ def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
         if np.count_nonzero(up) >= 2 and np.count_nonzero(down) >= 2:
             xc.append(0.5 * (edges[b] + edges[b + 1]))
             fc.append(0.5 * (np.mean(F[up]) + np.mean(F[down])))
+    if len(xc) < 2:
+        raise RecordingError(rec._where(), ["force_stroke recording: fewer than two positions passed in both "
+                                            "directions (a one-way stroke): friction cannot be averaged out"])
     return {"x_m": np.array(xc), "force_N": np.array(fc), "i_A": float(np.median(i[on]))}
 
 

@@ -363,3 +363,15 @@ def test_eddy_fit_leaves_out_recordings_without_absolute_flux(rig_maps, rig_camp
     assert fit.G_eddy_S == pytest.approx(good.G_eddy_S, rel=0.2)
     with pytest.raises(SolenoidError, match="no eddy recording can be used"):
         fit_eddy([cut], maps)
+
+
+def test_force_stroke_curve_refuses_a_one_way_stroke_by_name(rig_campaign):
+    from solenoid_fmu.errors import RecordingError
+    from solenoid_fmu.identify import force_stroke_curve
+
+    rec = next(read_recording(p) for p in rig_campaign("") if "force_stroke_1p50" in p)
+    both = force_stroke_curve(rec)
+    assert both["x_m"].size > 5
+    one_way = _first_half(rec)
+    with pytest.raises(RecordingError, match="one-way stroke"):
+        force_stroke_curve(one_way)
