@@ -10,7 +10,9 @@ signal        measured vs simulated
 ============= =====================================================================================
 ``force_N``   the measured force vs the FMU's F(Psi, x) (paper eq. 3), where the recording has force
 ``psi_Wb``    flux linkage from the measured voltage (paper eq. 4, offset removed) vs the FMU's Psi,
-              for current-driven runs with a voltage column
+              for current-driven runs with a voltage column; both anchored to the model's Psi at
+              the first sample (eq. 4 gives changes: a recording may start energized), and
+              without any zero-current rest compared orthogonal to a linear trend (unknown offset)
 ``current_A`` the measured current vs the FMU's (paper eqs. 1-2), for voltage-driven runs
 ============= =====================================================================================
 
