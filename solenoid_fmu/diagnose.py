@@ -48,6 +48,9 @@ SIGNALS = ("current_A", "voltage_V", "force_N", "psi_Wb")
 DEFAULT_THRESHOLD = 0.25
 #: Residuals smaller than this RMS share of the measured range are "nothing to explain".
 DEFAULT_MIN_NRMS = 0.003
+#: A flux residual is compared orthogonal to a linear trend when the eq.-4 offset's uncertainty
+#: times the duration exceeds this share of the recording's largest |flux|.
+OFFSET_UNCERTAINTY_SHARE = 1e-3
 
 
 @dataclass
@@ -310,7 +313,8 @@ def _folds(cases: list[ResidualCase]) -> list[tuple[list, list]]:
     return [([(0, half)], [(0, ~half)]), ([(0, ~half)], [(0, half)])]
 
 
-def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict) -> tuple[float, float, int]:
+def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict,
+            balanced: bool = False) -> tuple[float, float, int]:
     """Held-out SSE and SS of the normalized residual of ``signal`` fitted by the union of the
     features of ``effects`` (two-fold cross-validation); (0, 0, 0) when nothing applies."""
     feats = [[features(e, c, signal, scales) if signal in c.residuals else None for e in effects] for c in cases]
@@ -325,6 +329,14 @@ def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict
         norm = scales["range"].get(signal, max(np.ptp(res), 1e-30))
         cols = [X if X is not None else np.zeros((len(res), w)) for X, w in zip(f, widths, strict=True) if w]
         data.append((np.column_stack(cols), res / norm))
+    # balanced: no recording counts for more than the median one. A recording whose residual is far
+    # larger than the others' (one strongly heated run, say) is weighted down to the median RMS, so
+    # that the evidence of the other recordings is not drowned (weighted least squares, weights <= 1)
+    rms = [float(np.sqrt(np.mean(d[1] ** 2))) for d in data if d is not None]
+    if rms and balanced:
+        q = float(np.median(rms))
+        data = [None if d is None else (d[0] * w, d[1] * w) for d in data
+                for w in [q / max(float(np.sqrt(np.mean(d[1] ** 2))) if d is not None else q, q, 1e-300)]]
     sse, ss, p = 0.0, 0.0, 0
     for train, test in _folds(cases):
         Xt = [data[k][0][m] for k, m in train if data[k] is not None]
@@ -343,7 +355,8 @@ def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict
     return sse, ss, p
 
 
-def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partner: str = "material") -> Candidate:
+def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partner: str = "material",
+                 balanced: bool = False) -> Candidate:
     """Held-out share of residual energy that ``effect`` explains beyond ``partner``.
 
     Per signal: ``(SSE(partner) - min(SSE(partner + effect), SSE(effect))) / SS``, all held out.
@@ -362,20 +375,20 @@ def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partne
         if all(X is None for X in probe):
             continue
         union = (effect,) if partner in (None, effect) else (partner, effect)
-        sse, ss, p = _cv_sse(union, cases, signal, scales)
+        sse, ss, p = _cv_sse(union, cases, signal, scales, balanced)
         if ss <= 0:
             continue
         if partner in (None, effect):
             base = ss
         else:
-            base, _, _ = _cv_sse((partner,), cases, signal, scales)
+            base, _, _ = _cv_sse((partner,), cases, signal, scales, balanced)
             if base == 0.0:  # the partner does not apply to this signal
                 base = ss
             # the partner's columns can also spoil the held-out prediction (a smooth polynomial fitted
             # on some recordings extrapolates badly to others): then the effect alone is the better
             # model, and what it explains beyond the partner is measured against that
             # (on the same samples: where the effect does not apply, it leaves the residual as it is)
-            sse_alone, ss_alone, _ = _cv_sse((effect,), cases, signal, scales)
+            sse_alone, ss_alone, _ = _cv_sse((effect,), cases, signal, scales, balanced)
             sse = min(sse, sse_alone + (ss - ss_alone))
         per_signal[signal] = (base - sse) / ss
         sse_total += sse - base
@@ -386,7 +399,7 @@ def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partne
     if partner not in (None, effect):
         sse_a = ss_a = 0.0
         for signal in per_signal:
-            e, q, _ = _cv_sse((effect,), cases, signal, scales)
+            e, q, _ = _cv_sse((effect,), cases, signal, scales, balanced)
             sse_a += e
             ss_a += q
         alone = 1.0 - sse_a / ss_a if ss_a > 0 else 0.0
@@ -409,7 +422,7 @@ def residual_nrms(cases: list[ResidualCase]) -> dict:
 
 
 def diagnose(cases: list[ResidualCase], effects=EFFECTS, threshold: float = DEFAULT_THRESHOLD,
-             signals=SIGNALS, min_nrms: float = DEFAULT_MIN_NRMS) -> Diagnosis:
+             signals=SIGNALS, min_nrms: float = DEFAULT_MIN_NRMS, balanced: bool = False) -> Diagnosis:
     """Rank the candidate effects by held-out explained residual variance; name the verdict.
 
     Parameters
@@ -423,14 +436,19 @@ def diagnose(cases: list[ResidualCase], effects=EFFECTS, threshold: float = DEFA
     min_nrms : float
         When every signal's residual RMS is below this share of its measured range, the model
         already matches and the answer is ``"unexplained"`` whatever the scores.
+    balanced : bool
+        Weight the recordings so that none counts for more than the median one (by residual
+        RMS): the scores then measure how broadly an effect explains the campaign rather than
+        how much residual energy. ``improve`` asks for it when no effect clears its threshold
+        unbalanced (one recording's large residual of one effect can drown another effect).
     """
     if not cases:
         raise ValueError("diagnose needs at least one recording")
-    others = [score_effect(e, cases, signals) for e in effects if e != "material"]
+    others = [score_effect(e, cases, signals, balanced=balanced) for e in effects if e != "material"]
     ranking = others
     if "material" in effects:
         best = max(others, key=lambda c: c.score).effect if others else None
-        ranking = others + [score_effect("material", cases, signals, partner=best)]
+        ranking = others + [score_effect("material", cases, signals, partner=best, balanced=balanced)]
     ranking = sorted(ranking, key=lambda c: -c.score)
     nrms = residual_nrms(cases)
     significant = any(v >= min_nrms for v in nrms.values())
@@ -521,7 +539,7 @@ def residual_case(rec, simulate) -> ResidualCase | None:
             psi_app = psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)])
             psi_meas = psi_sim[0] + fr.psi_Wb
             res = psi_meas - psi_app
-            if not fr.offset_measured:
+            if fr.offset_uncertainty_Wb > OFFSET_UNCERTAINTY_SHARE * float(np.max(np.abs(psi_meas))):
                 res = detrend(res, t)
                 detrended = ("psi_Wb",)
             residuals["psi_Wb"] = res

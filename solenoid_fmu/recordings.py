@@ -902,6 +902,11 @@ class FluxResult:
         A zero-current rest phase at the start or end gave the voltage offset. Without one, the
         integral drifts by (unknown offset) x t and only its part orthogonal to a linear trend
         carries information.
+    offset_uncertainty_Wb : float
+        What the voltage offset's own uncertainty can make of the flux by the end of the
+        recording [Wb]: the standard error of the rest phases' mean voltage times the duration
+        (infinite without a usable rest). Flux differences smaller than this, growing linearly
+        with time, are not measured.
     """
 
     time_s: np.ndarray
@@ -923,6 +928,7 @@ class FluxResult:
     notes: list[str] = field(default_factory=list)
     starts_at_rest: bool = True
     offset_measured: bool = True
+    offset_uncertainty_Wb: float = 0.0
 
     def summary(self) -> dict:
         """The CLI's JSON object: numbers in SI, NaN as None."""
@@ -943,6 +949,7 @@ class FluxResult:
             "notes": list(self.notes),
             "starts_at_rest": self.starts_at_rest,
             "offset_measured": self.offset_measured,
+            "offset_uncertainty_Wb": num(self.offset_uncertainty_Wb),
         }
 
 
@@ -998,8 +1005,8 @@ def _stationary(u: np.ndarray, u_scale: float) -> bool:
 
 
 def _offset_model(t, u, head, tail):
-    """Voltage offset (a, b, t0, n): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V]
-    over the ``n`` (0-2) rest phases used.
+    """Voltage offset (a, b, t0, n, se): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V]
+    over the ``n`` (0-2) rest phases used; ``se`` [V] the larger standard error of those means.
 
     U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
     A rest phase whose voltage is still settling (:func:`_stationary`) is not used.
@@ -1007,15 +1014,17 @@ def _offset_model(t, u, head, tail):
     from scipy.stats import trim_mean
 
     anchors = []
+    se = 0.0
     for sl in (head, tail):
         if sl is not None and sl.stop - sl.start > 0 and _stationary(u[sl], float(np.max(np.abs(u)))):
             anchors.append((float(np.median(t[sl])), float(trim_mean(u[sl], 0.1))))
+            se = max(se, float(np.std(u[sl])) / math.sqrt(sl.stop - sl.start))
     if not anchors:
-        return 0.0, 0.0, float(t[0]), 0
+        return 0.0, 0.0, float(t[0]), 0, math.inf
     if len(anchors) == 1:
-        return anchors[0][1], 0.0, anchors[0][0], 1
+        return anchors[0][1], 0.0, anchors[0][0], 1, se
     (t0, a0), (t1, a1) = anchors
-    return a0, (a1 - a0) / (t1 - t0), t0, 2
+    return a0, (a1 - a0) / (t1 - t0), t0, 2, se
 
 
 def _plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
@@ -1107,7 +1116,7 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
         R, method = None, None
 
     # voltage offset (with drift) from the rest phases; current-sensor offset only if significant
-    a, b, t0, n_anchors = _offset_model(t, u, head, tail)
+    a, b, t0, n_anchors, offset_se = _offset_model(t, u, head, tail)
     if n_anchors == 0 and (head is not None or tail is not None):
         notes.append("the zero-current rest phases still carry a settling induced voltage: no voltage offset "
                      "removed")
@@ -1187,7 +1196,7 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
                       commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
                       hysteresis_mean_width_Wb=width_mean, notes=notes,
                       starts_at_rest=bool(abs(float(i_s[0])) <= thr),
-                      offset_measured=n_anchors > 0)
+                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]))
 
 
 def _split_branches(i, i_s, psi, thr, k) -> list[FluxBranch]:
