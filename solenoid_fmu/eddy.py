@@ -89,7 +89,7 @@ def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
     e = np.gradient(psi, t)
     x = np.asarray(rec.positions_m(), dtype=float)
     i = np.asarray(rec.current_A, dtype=float) - fl.current_offset_A
-    i_f = np.sign(psi) * i_f_at(maps, np.abs(psi), x)
+    i_f = np.sign(psi) * i_f_at(maps, np.abs(psi), x, where=str(rec.path or 'eddy recording'))
     smooth = np.convolve(i, np.ones(5) / 5, mode="same") if len(i) >= 5 else i
     di = np.abs(np.gradient(smooth, t))
     moving = di > 0.5 * np.percentile(di, 99.5)  # ramps may be a small share of the record
