@@ -37,7 +37,9 @@ Interpolation conventions (written into ``maps.json`` under ``"interpolation"``)
 - (Psi, x) tables: bilinear (what a real-time model and Modelica ``CombiTable2D`` with
   ``LinearSegments`` do). ``i_f`` at the flux grid nodes is the exact inverse of the Psi(i)
   interpolant above, so the round trip Psi -> i_f -> Psi is exact on the nodes; the flux grid is made
-  fine enough (automatic ``npsi``) that it stays within 0.05 % between them.
+  fine enough (automatic ``npsi``) that it stays within 0.05 % between them. Flux lookups up to
+  ``FLUX_EXTRAPOLATION_LIMIT`` (5 %) of the flux span past the last node extrapolate linearly from the last
+  flux interval, with one logged warning per lookup.
 """
 
 from __future__ import annotations
