@@ -5,7 +5,8 @@ The model's eddy term (paper eq. 2 with the parameter the paper calls L_eddy) is
 
 - Psi(t) by paper eq. 4 (offset removed, :func:`solenoid_fmu.recordings.flux_linkage`), and the
   induced voltage e = dPsi/dt;
-- the field-generating current from the maps, i_f(Psi, x);
+- the field-generating current from the maps, i_f(Psi, x) (a measured flux up to 5 % of the map's flux
+  span past its last node is extrapolated linearly, with a logged warning naming the recording);
 - i_eddy = i - i_f(Psi, x), regressed on e through the origin: G_eddy = sum(e i_eddy) / sum(e^2),
   per recording (one rate each) and pooled, each with its R^2.
 
@@ -93,7 +94,7 @@ def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
     e = np.gradient(psi, t)
     x = np.asarray(rec.positions_m(), dtype=float)
     i = np.asarray(rec.current_A, dtype=float) - fl.current_offset_A
-    i_f = np.sign(psi) * i_f_at(maps, np.abs(psi), x)
+    i_f = np.sign(psi) * i_f_at(maps, np.abs(psi), x, where=str(rec.path or 'eddy recording'))
     smooth = np.convolve(i, np.ones(5) / 5, mode="same") if len(i) >= 5 else i
     di = np.abs(np.gradient(smooth, t))
     moving = di > 0.5 * np.percentile(di, 99.5)  # ramps may be a small share of the record

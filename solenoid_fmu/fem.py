@@ -33,6 +33,7 @@ Sign: the force is positive when it pulls the armature towards the pole (closing
 from __future__ import annotations
 
 import json
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -50,6 +51,22 @@ from .mesh import MorphMesh, build_mesh
 NEWTON_RTOL = 1e-9
 NEWTON_MAXIT = 40
 EGGSHELL_M = 0.4e-3  # thickness of the air layer over which the Maxwell-stress weight falls to 0
+#: A Newton stall is accepted as converged (with a logged note) when the relative residual has stopped
+#: decreasing below this: the update has shrunk to rounding level (``NEWTON_STALL_UPDATE`` of the solution
+#: norm), or the iteration limit is reached and the best iterate's residual is below it. At a residual of 7e-6
+#: Psi and F differ from the fully converged ones by 3e-8 and 4e-8 relative (PS45, i = 0.632 A, x = 2.787 mm),
+#: far below the maps' 0.05 % interpolation target.
+NEWTON_STALL_RTOL = 1e-5
+NEWTON_STALL_UPDATE = 1e-12
+#: Load steps of the retry after a failed Newton solve: the current is ramped in this many equal steps
+#: from the neighbour's solution (when given) or from zero, each step warm-started from the one before.
+RETRY_LOAD_STEPS = (4, 16)
+
+log = logging.getLogger(__name__)
+
+
+class _NewtonFailure(SolverError):
+    """Newton did not converge at one point (the retry in :meth:`Solver.solve` may still recover it)."""
 
 
 @dataclass
@@ -65,6 +82,7 @@ class Solution:
     coenergy_J: float
     newton_iterations: int
     residual_history: list = field(default_factory=list)
+    note: str = ""  # how Newton got there when not by the plain tolerance (a stall accepted, a retry)
 
     @property
     def force_N(self) -> float:
@@ -269,12 +287,46 @@ class Solver:
         return float(np.sum(cfg.dx * cfg.r * self._energy_density(b2)) - f @ u)
 
     # -- Newton --------------------------------------------------------------------------------
-    def solve(self, i_A: float, x_m: float, u0: np.ndarray | None = None) -> Solution:
+    def solve(self, i_A: float, x_m: float, u0: np.ndarray | None = None, i0_A: float | None = None) -> Solution:
         """Solve one operating point (see :meth:`_solve`); BLAS and MKL run single-threaded here,
         which is 2-3x faster for these sizes than letting threads contend (and lets sweeps use
-        one process per core)."""
+        one process per core).
+
+        When Newton does not converge, the point is retried by load stepping in current
+        (``RETRY_LOAD_STEPS``): from ``u0`` at ``i0_A`` [A] (the neighbour's solution and its current,
+        when both are given), then from zero; each step is warm-started from the one before and damped
+        by the Armijo line search. Only when every retry fails does it raise :class:`SolverError`,
+        naming x [mm] and i [A]; a recovered point carries a ``note`` and is logged (INFO).
+        """
         with threadpool_limits(limits=1):
-            return self._solve(i_A, x_m, u0)
+            try:
+                return self._solve(i_A, x_m, u0)
+            except _NewtonFailure as exc:
+                first = exc
+            return self._retry(i_A, x_m, u0, i0_A, first)
+
+    def _retry(self, i_A: float, x_m: float, u0, i0_A, first: _NewtonFailure) -> Solution:
+        """Load stepping in current after the failed solve ``first`` (see :meth:`solve`)."""
+        starts = [("the neighbour's solution", u0, float(i0_A))] if u0 is not None and i0_A is not None else []
+        starts.append(("zero", None, 0.0))
+        tried = []
+        for label, u_start, i_start in starts:
+            for n in RETRY_LOAD_STEPS:
+                tried.append(f"{n} steps from {label} at {i_start:g} A")
+                u, iterations = u_start, 0
+                try:
+                    for k in range(1, n + 1):
+                        sol = self._solve(i_start + (i_A - i_start) * k / n, x_m, u)
+                        u, iterations = sol.u, iterations + sol.newton_iterations
+                except _NewtonFailure:
+                    continue
+                sol.newton_iterations = iterations
+                sol.note = (f"recovered by load stepping in current ({tried[-1]}) after: {first}"
+                            + (f"; {sol.note}" if sol.note else ""))
+                log.info("FEM point i = %g A, x = %g mm %s", i_A, x_m * 1e3, sol.note)
+                return sol
+        raise SolverError(f"{first}; the retries by load stepping in current ({'; '.join(tried)}) did not "
+                          "converge either")
 
     def _solve(self, i_A: float, x_m: float, u0: np.ndarray | None = None) -> Solution:
         """Solve one operating point.
@@ -291,7 +343,8 @@ class Solver:
         Raises
         ------
         SolverError
-            When Newton does not converge (with the residual history) or the input is invalid.
+            When the input is invalid; ``_NewtonFailure`` (a SolverError) when Newton does not converge
+            (with the residual history). A stall below ``NEWTON_STALL_RTOL`` is accepted (see there).
         """
         if not np.isfinite(i_A) or not np.isfinite(x_m):
             raise SolverError(f"current and gap must be finite, got i = {i_A!r} A, x = {x_m!r} m")
@@ -307,11 +360,13 @@ class Solver:
         fnorm = np.linalg.norm(f[~self._isdir])
         history = []
         it = 0
+        note = ""
         self.solves += 1
         if fnorm == 0.0:
             u[:] = 0.0
         else:
             energy = self._energy(cfg, u, f)
+            best = (np.inf, u)
             for it in range(1, NEWTON_MAXIT + 1):
                 K, res = self._tangent(cfg, u, f)
                 rnorm = np.linalg.norm(res[~self._isdir]) / fnorm
@@ -319,6 +374,8 @@ class Solver:
                 if rnorm < NEWTON_RTOL:
                     it -= 1
                     break
+                if rnorm < best[0]:
+                    best = (rnorm, u)
                 du = self._spd.solve(K.data, K.indices, K.indptr, -res)
                 # Armijo backtracking on the convex energy
                 slope = res @ du
@@ -330,13 +387,18 @@ class Solver:
                         break
                     step *= 0.5
                 u, energy = trial, e_trial
-                if step * np.linalg.norm(du) <= 1e-12 * max(np.linalg.norm(u), 1e-30) and rnorm < 1e-6:
+                if (step * np.linalg.norm(du) <= NEWTON_STALL_UPDATE * max(np.linalg.norm(u), 1e-30)
+                        and rnorm < NEWTON_STALL_RTOL):
+                    note = self._stall_note(i_A, x_m, rnorm, "the update is at rounding level")
                     break
             else:
-                raise SolverError(
-                    f"Newton did not converge at i = {i_A:g} A, x = {x_m * 1e3:g} mm after {NEWTON_MAXIT} "
-                    f"iterations; relative residuals: {', '.join(f'{h:.2e}' for h in history)}"
-                )
+                if best[0] >= NEWTON_STALL_RTOL:
+                    raise _NewtonFailure(
+                        f"Newton did not converge at i = {i_A:g} A, x = {x_m * 1e3:g} mm after {NEWTON_MAXIT} "
+                        f"iterations; relative residuals: {', '.join(f'{h:.2e}' for h in history)}"
+                    )
+                u = best[1]
+                note = self._stall_note(i_A, x_m, best[0], f"best of {NEWTON_MAXIT} iterations")
         psi = float(cfg.psi_weights @ u)
         w_co = -2 * np.pi * self._energy(cfg, u, f) if fnorm else 0.0
         dens = i_A * self.coil_density_per_A + self.fixed_density
@@ -345,7 +407,15 @@ class Solver:
             F_st = self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
         else:
             F_st = 0.0
-        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history)
+        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, note)
+
+    @staticmethod
+    def _stall_note(i_A: float, x_m: float, rnorm: float, why: str) -> str:
+        """Log and return the note of a Newton stall accepted as converged (see ``NEWTON_STALL_RTOL``)."""
+        note = (f"Newton stopped at relative residual {rnorm:.2e} ({why}; target {NEWTON_RTOL:g}); accepted as "
+                f"converged: below the stall tolerance {NEWTON_STALL_RTOL:g}")
+        log.info("FEM point i = %g A, x = %g mm: %s", i_A, x_m * 1e3, note)
+        return note
 
     def _tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
         g = self._grad(cfg, u)  # (2, nel, nq)
@@ -483,15 +553,24 @@ def sweep_currents(geometry: Geometry, material: BHCurve, x_m: float, i_A, mesh_
     Returns
     -------
     dict of ndarray, shape (n,)
-        ``psi_Wb``, ``force_N`` (co-energy), ``force_stress_N``, ``coenergy_J``, ``newton_iterations``.
+        ``psi_Wb``, ``force_N`` (co-energy), ``force_stress_N``, ``coenergy_J``, ``newton_iterations``,
+        ``newton_recovered`` (1 where Newton stalled and was accepted, or was recovered by the retry of
+        :meth:`Solver.solve`, which steps the load from the previous current's solution).
+
+    Raises
+    ------
+    SolverError
+        A point that the retry cannot recover either, naming x [mm] and i [A].
     """
     solver = get_solver(geometry, material, mesh_size)
     i_A = np.asarray(i_A, dtype=float)
     out = {k: np.zeros(len(i_A)) for k in ("psi_Wb", "force_N", "force_stress_N", "coenergy_J", "newton_iterations")}
-    u = None
+    out["newton_recovered"] = np.zeros(len(i_A))
+    u, i_prev = None, None
     for k, i in enumerate(i_A):
-        sol = solver.solve(float(i), x_m, u0=u)
-        u = sol.u if i != 0 else None
+        sol = solver.solve(float(i), x_m, u0=u, i0_A=i_prev)
+        u, i_prev = (sol.u, float(i)) if i != 0 else (None, None)
+        out["newton_recovered"][k] = 1.0 if sol.note else 0.0
         out["psi_Wb"][k] = sol.psi_Wb
         out["force_N"][k] = sol.force_coenergy_N
         out["force_stress_N"][k] = sol.force_stress_N

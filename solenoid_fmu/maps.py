@@ -37,7 +37,9 @@ Interpolation conventions (written into ``maps.json`` under ``"interpolation"``)
 - (Psi, x) tables: bilinear (what a real-time model and Modelica ``CombiTable2D`` with
   ``LinearSegments`` do). ``i_f`` at the flux grid nodes is the exact inverse of the Psi(i)
   interpolant above, so the round trip Psi -> i_f -> Psi is exact on the nodes; the flux grid is made
-  fine enough (automatic ``npsi``) that it stays within 0.05 % between them.
+  fine enough (automatic ``npsi``) that it stays within 0.05 % between them. Flux lookups up to
+  ``FLUX_EXTRAPOLATION_LIMIT`` (5 %) of the flux span past the last node extrapolate linearly from the last
+  flux interval, with one logged warning per lookup.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ import datetime as _dt
 import hashlib
 import io
 import json
+import logging
 import math
 import os
 import subprocess
@@ -113,6 +116,10 @@ JSON_NAME = "maps.json"
 DEFAULT_NX = 27
 DEFAULT_NI = 26
 DEFAULT_CURRENT_FACTOR = 1.25
+#: Flux-linkage lookups (:func:`i_f_at`, :func:`force_psi_at`) up to this share of the flux table's span past
+#: its last node are extrapolated linearly from the last flux interval, with one logged warning per lookup
+#: (a measured flux a hair above the map's range must not stop a fit); further out they are refused.
+FLUX_EXTRAPOLATION_LIMIT = 0.05
 #: Target of the automatic flux-grid size: round trip Psi -> i_f -> Psi between nodes (relative).
 ROUND_TRIP_TARGET = 5e-4
 _NPSI_CANDIDATES = (101, 201, 401, 801, 1601, 3201)
@@ -126,6 +133,8 @@ INTERPOLATION = {
     "force_N": "bilinear in (psi, x); nodes = the force_ix_N interpolant at i_f along the column",
     "extrapolation": "linear from the last two sweep points of each x column (flagged in 'extrapolated')",
 }
+
+log = logging.getLogger(__name__)
 
 
 # --------------------------------------------------------------------------------------------
@@ -435,6 +444,30 @@ def _check_range(values: np.ndarray, grid: np.ndarray, what: str, unit: str, sca
         )
 
 
+def _check_flux_range(psi: np.ndarray, grid: np.ndarray, where: str) -> None:
+    """Refuse flux linkage [Wb] outside the flux grid, except up to ``FLUX_EXTRAPOLATION_LIMIT`` of its span
+    past the last node, which :func:`_bilinear` extrapolates linearly (one logged warning per call)."""
+    prefix = f"{where}: " if where else ""
+    if not np.isfinite(psi).all():
+        raise MapsError(f"{prefix}flux linkage query contains NaN/inf")
+    span = grid[-1] - grid[0]
+    tol = 1e-9 * span
+    top = grid[-1] + FLUX_EXTRAPOLATION_LIMIT * span
+    far = (psi < grid[0] - tol) | (psi > top)
+    if far.any():
+        v = psi[np.argmax(far)]
+        why = (f" by more than {FLUX_EXTRAPOLATION_LIMIT * 100:g} % of its span (lookups up to {top:.6g} Wb are "
+               "extrapolated): sweep the maps to a higher current") if v > top else ""
+        raise MapsError(f"{prefix}flux linkage {v:.6g} Wb is outside the map's table "
+                        f"[{grid[0]:.6g}, {grid[-1]:.6g}] Wb{why}")
+    over = psi > grid[-1] + tol
+    if over.any():
+        v = float(psi.max())
+        log.warning("%s%d of %d flux-linkage lookups lie past the map's last flux node %.6g Wb (up to %.6g Wb, "
+                    "%.3g %% of the table span): extrapolated linearly from the last flux interval",
+                    prefix, int(over.sum()), psi.size, grid[-1], v, 100 * (v - grid[-1]) / span)
+
+
 def psi_at(maps: CharacteristicMaps, i_A, x_m) -> np.ndarray:
     """Flux linkage Psi(i, x) [Wb] interpolated from the FEM table ``psi_ix_Wb``.
 
@@ -484,7 +517,7 @@ def force_at(maps: CharacteristicMaps, i_A, x_m, stress: bool = False) -> np.nda
     return np.sum(cols * _x_weights(maps.x_m, x), axis=1).reshape(shape)
 
 
-def _bilinear(maps: CharacteristicMaps, table: np.ndarray, psi_Wb, x_m, allow_extrapolated: bool):
+def _bilinear(maps: CharacteristicMaps, table: np.ndarray, psi_Wb, x_m, allow_extrapolated: bool, where: str = ""):
     p = np.asarray(psi_Wb, dtype=np.float64)
     x = np.asarray(x_m, dtype=np.float64)
     try:
@@ -493,7 +526,7 @@ def _bilinear(maps: CharacteristicMaps, table: np.ndarray, psi_Wb, x_m, allow_ex
         raise MapsError(f"flux shape {p.shape} and position shape {x.shape} do not broadcast") from None
     shape = p.shape
     p, x = p.ravel(), x.ravel()
-    _check_range(p, maps.psi_Wb, "flux linkage", "Wb", 1.0)
+    _check_flux_range(p, maps.psi_Wb, where)
     _check_range(x, maps.x_m, "position", "mm", 1e3)
     jp = np.clip(np.searchsorted(maps.psi_Wb, p, side="right") - 1, 0, len(maps.psi_Wb) - 2)
     jx = np.clip(np.searchsorted(maps.x_m, x, side="right") - 1, 0, len(maps.x_m) - 2)
@@ -519,28 +552,33 @@ def _bilinear(maps: CharacteristicMaps, table: np.ndarray, psi_Wb, x_m, allow_ex
     return v.reshape(shape)
 
 
-def i_f_at(maps: CharacteristicMaps, psi_Wb, x_m, allow_extrapolated: bool = True) -> np.ndarray:
+def i_f_at(maps: CharacteristicMaps, psi_Wb, x_m, allow_extrapolated: bool = True, *, where: str = "") -> np.ndarray:
     """Field-generating current i_f(Psi, x) [A] (paper eq. 2), bilinear on the map.
 
     Parameters
     ----------
     maps : CharacteristicMaps
     psi_Wb : array-like
-        Flux linkage [Wb] inside ``[0, maps.psi_Wb[-1]]``.
+        Flux linkage [Wb] inside ``[0, maps.psi_Wb[-1]]``; up to ``FLUX_EXTRAPOLATION_LIMIT`` (5 %) of the
+        flux span past the last node it is extrapolated linearly from the last flux interval, with one
+        logged warning per call.
     x_m : array-like
         Working-gap position [m] inside the table; broadcast with ``psi_Wb``.
     allow_extrapolated : bool
         When False, raise MapsError if a query uses an extrapolated table node.
+    where : str
+        What the flux comes from (e.g. a recording's file name), to start the warning and error messages.
     """
-    return _bilinear(maps, maps.i_f_A, psi_Wb, x_m, allow_extrapolated)
+    return _bilinear(maps, maps.i_f_A, psi_Wb, x_m, allow_extrapolated, where)
 
 
-def force_psi_at(maps: CharacteristicMaps, psi_Wb, x_m, allow_extrapolated: bool = True) -> np.ndarray:
+def force_psi_at(maps: CharacteristicMaps, psi_Wb, x_m, allow_extrapolated: bool = True, *,
+                 where: str = "") -> np.ndarray:
     """Force F(Psi, x) [N] (paper eq. 3, positive closes the gap), bilinear on the map.
 
     Parameters are those of :func:`i_f_at`.
     """
-    return _bilinear(maps, maps.force_N, psi_Wb, x_m, allow_extrapolated)
+    return _bilinear(maps, maps.force_N, psi_Wb, x_m, allow_extrapolated, where)
 
 
 # --------------------------------------------------------------------------------------------
@@ -872,7 +910,8 @@ def build_maps(
         Show a tqdm progress bar with the time left on stderr.
     sweep : callable, optional
         ``sweep(geometry, material, x_m, i_A, mesh_size) -> dict`` with arrays ``psi_Wb``,
-        ``force_N``, ``force_stress_N`` (and optionally ``newton_iterations``) of length ``len(i_A)``;
+        ``force_N``, ``force_stress_N`` (and optionally ``newton_iterations``, ``newton_recovered``) of length
+        ``len(i_A)``;
         default :func:`solenoid_fmu.fem.sweep_currents`. Must be picklable for process pools.
     name : str, optional
         Map name stored in the metadata; default the geometry's name.
@@ -917,6 +956,7 @@ def build_maps(
     force = np.empty((ni, nx))
     stress = np.empty((ni, nx))
     newton = np.zeros((ni, nx))
+    recovered = np.zeros((ni, nx))
     t0 = time.perf_counter()
     from tqdm.auto import tqdm
 
@@ -931,7 +971,7 @@ def build_maps(
             result = fut.result()
         except SolenoidError as exc:
             raise MapsError(f"FEM sweep at x = {x_m[j] * 1e3:.4g} mm failed: {exc}") from exc
-        psi[:, j], force[:, j], stress[:, j], newton[:, j] = _sweep_columns(result, ni, x_m[j])
+        psi[:, j], force[:, j], stress[:, j], newton[:, j], recovered[:, j] = _sweep_columns(result, ni, x_m[j])
         bar.update(ni)
         pending.discard(fut)
 
@@ -966,6 +1006,8 @@ def build_maps(
         "operating_points": int(ni * nx),
         "newton_iterations_total": int(newton.sum()),
         "newton_iterations_max": int(newton.max()),
+        # (x [mm], i [A]) of the points where Newton stalled (accepted) or was recovered by load stepping
+        "newton_recovered_x_mm_i_A": [[float(x_m[j]) * 1e3, float(i_A[k])] for k, j in np.argwhere(recovered)],
     }
     fem_settings = getattr(sys.modules.get(getattr(sweep, "__module__", ""), None), "SOLVER_SETTINGS", None)
     if isinstance(fem_settings, dict):
@@ -1013,8 +1055,9 @@ def _sweep_columns(result, ni: int, x: float):
             k = int(np.argmax(~np.isfinite(col)))
             raise MapsError(f"{where}: {key!r} has NaN/inf at current index {k}")
         cols.append(col)
-    it = np.asarray(result.get("newton_iterations", np.zeros(ni)), dtype=np.float64).ravel()
-    cols.append(it if it.shape == (ni,) else np.zeros(ni))
+    for key in ("newton_iterations", "newton_recovered"):
+        extra = np.asarray(result.get(key, np.zeros(ni)), dtype=np.float64).ravel()
+        cols.append(extra if extra.shape == (ni,) else np.zeros(ni))
     return cols
 
 

@@ -7,7 +7,10 @@
    files that are not recordings are listed as skipped);
 2. **identify**: B(H) from the ``flux`` recordings (:mod:`solenoid_fmu.identify`) ->
    ``material/material.csv`` (+ ``.bh``, ``.tab``) and ``identify/`` (figures, JSON);
-3. **maps**: FEM sweep with the identified steel -> ``maps/`` (:func:`solenoid_fmu.maps.build_maps`);
+3. **maps**: FEM sweep with the identified steel -> ``maps/`` (:func:`solenoid_fmu.maps.build_maps`); the
+   sweep's currents reach ``1.25 x`` the coil's rated current or ``1.25 x`` the largest |current| in the
+   campaign's recordings, whichever is larger (:func:`maps_current_grid`), so the maps' flux range covers
+   what was measured;
 4. **eddy**: the single eddy conductance from the ``eddy`` recordings, stored in ``maps/maps.json``;
 5. **export**: ``NAME.fmu`` (pythonfmu) and, when a C compiler is there, ``NAME-native.fmu``;
 6. **validate** and **diagnose** the FMU on every recording;
@@ -33,9 +36,12 @@ error and leaves the results of the steps before it in place.
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 from .errors import SolenoidError
 
@@ -44,6 +50,10 @@ PRESETS = {
     "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
     "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
 }
+
+
+#: The maps sweep reaches at least this multiple of the largest |current| [A] in the campaign's recordings.
+CAMPAIGN_CURRENT_MARGIN = 1.25
 
 
 class PipelineError(SolenoidError):
@@ -72,16 +82,44 @@ def _progress(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def _maps_grid(preset: dict, geometry):
-    """Positions [m] and currents [A] of the maps sweep for a preset (None: the maps' defaults)."""
-    from .maps import DEFAULT_CURRENT_FACTOR, default_currents, default_positions
+def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None) -> np.ndarray:
+    """Currents [A] of the maps sweep, from 0 to the larger of ``DEFAULT_CURRENT_FACTOR`` (1.25) x the coil's
+    rated current and ``CAMPAIGN_CURRENT_MARGIN`` (1.25) x the largest |current| in ``recordings``.
 
-    x = i = None
+    The spacing is :func:`solenoid_fmu.maps.default_currents`'s (denser at low currents). When the
+    campaign pushes the top up, the number of currents grows with ``top^(2/3)`` so the first step (near the
+    iron's knee) stays as fine as with ``n_i`` currents up to the rated top (within 0.2 %: a top pushed up by
+    measurement noise adds no current).
+
+    Parameters
+    ----------
+    rated_current_A : float
+        The coil's rated current ``geometry.coil.max_current_A`` [A].
+    recordings : iterable of Recording
+        The campaign; their ``current_A`` columns (non-finite samples ignored).
+    n_i : int, optional
+        Number of currents up to the rated top (default ``maps.DEFAULT_NI``).
+    """
+    from .maps import DEFAULT_CURRENT_FACTOR, DEFAULT_NI, default_currents
+
+    n_i = DEFAULT_NI if n_i is None else int(n_i)
+    rated_top = DEFAULT_CURRENT_FACTOR * rated_current_A
+    peaks = [float(np.max(np.abs(c[np.isfinite(c)]), initial=0.0))
+             for c in (np.asarray(r.current_A, dtype=float) for r in recordings)]
+    top = max([rated_top] + [CAMPAIGN_CURRENT_MARGIN * p for p in peaks])
+    if top > rated_top:
+        n_i = math.ceil((n_i - 1) * (top / rated_top) ** (2 / 3) - 0.01) + 1  # 0.01: no extra point for noise
+    return default_currents(top, n_i)
+
+
+def _maps_grid(preset: dict, geometry, recordings=()):
+    """Positions [m] and currents [A] of the maps sweep for a preset and campaign (None: the maps' defaults)."""
+    from .maps import default_positions
+
+    x = None
     if preset["n_x"] is not None:
         x = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, preset["n_x"])
-    if preset["n_i"] is not None:
-        i = default_currents(DEFAULT_CURRENT_FACTOR * geometry.coil.max_current_A, preset["n_i"])
-    return x, i
+    return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"])
 
 
 def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
@@ -139,7 +177,9 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
 
         t0 = step("characteristic maps (FEM sweep with the identified steel)")
         maps_dir = out / "maps"
-        x_m, i_A = _maps_grid(cfg, geom)
+        x_m, i_A = _maps_grid(cfg, geom, recs)
+        say(f"   currents 0 .. {i_A[-1]:.4g} A ({len(i_A)}): 1.25 x the larger of the rated current and the "
+            "campaign's largest |current|")
         executor = InlineExecutor() if workers == 1 else cf.ProcessPoolExecutor(max_workers=workers)
         try:
             maps = build_maps(geom, ident.curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"], executor=executor,
