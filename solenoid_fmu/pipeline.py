@@ -222,16 +222,21 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
                 say(f"   improved native FMU not built: {exc}")
         times["improve"] = time.perf_counter() - t0
         heat = "heating" in res["effects_added"]
-        if round_no == 2 or not heat:
+        # heating fitted but rejected while a B(H) error is left: the B(H) identified from the heating-drifted
+        # flux may itself be what spoiled the heating's validation (the material error swamps it)
+        tried_heat = next((st["params"] for st in res["steps"] if st["effect"] == "heating" and st["params"]), None)
+        heat_suspected = not heat and tried_heat is not None and res["diagnoses"][-1]["verdict"] == "material"
+        if round_no == 2 or not (heat or heat_suspected):
             break
         # Coil heating was found: the flux recordings the identification used carried the heating's eq.-4
         # drift (a B(H) error that the diagnosis may not be able to separate from the other effects left).
         # Correct them with the fitted heating model and identify again.
-        say("== coil heating was added: identify B(H) again from heating-corrected flux")
+        say("== coil heating was " + ("added" if heat else "fitted, B(H) error left") +
+            ": identify B(H) again from heating-corrected flux")
         from .improve import heating_corrected, tables_from_fmu
         from .recordings import write_recording
 
-        heating = tables_from_fmu(res["improved_fmu"])[0].meta["effects"]["heating"]
+        heating = tables_from_fmu(res["improved_fmu"])[0].meta["effects"]["heating"] if heat else tried_heat
         corr_dir = out / "heating-corrected"
         corr_dir.mkdir(parents=True, exist_ok=True)
         ident_recs = [heating_corrected(r, heating) if r.kind in ("flux", "eddy") else r for r in recs]
