@@ -13,6 +13,27 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from .errors import SolenoidError
+
+
+class OutputError(SolenoidError):
+    """An output path that would destroy an input, or that cannot be written."""
+
+
+def refuse_overwriting_inputs(output, inputs) -> Path:
+    """``output`` as a Path, unless it is (after resolving symlinks) one of ``inputs`` or lies inside
+    an input directory's files: then :class:`OutputError` naming both. A result must never replace
+    the measured data it came from."""
+    out = Path(output)
+    target = out.resolve()
+    for item in inputs:
+        if item is None:
+            continue
+        src = Path(item).resolve()
+        if target == src:
+            raise OutputError(f"{out}: the output would overwrite the input {item}; choose another path")
+    return out
+
 
 def _umask() -> int:
     mask = os.umask(0)

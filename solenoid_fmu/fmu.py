@@ -402,6 +402,10 @@ def load_maps_tables(maps_dir) -> _model.MapTables:
     maps_dir = Path(maps_dir)
     if not maps_dir.is_dir():
         raise MapsError(f"{maps_dir}: maps directory not found")
+    from .maps import load_maps
+
+    load_maps(maps_dir)  # one rule for every reader: the checks of `solenoid-fmu maps --from` (schema, units,
+    # name, arrays, npz and json written together) before the model's own
     try:
         return _model.load_tables(maps_dir)
     except _model.ModelMapsError as exc:
@@ -530,6 +534,9 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", model_name: str | 
             if problems:
                 raise FmuBuildError(f"{dest}: fmpy validation found {len(problems)} problem(s):\n"
                                     + "\n".join(f"  - {p}" for p in problems))
+        from .fileio import _umask
+
+        os.chmod(tmp, 0o666 & ~_umask())  # the mode open() would give, not mkstemp's private 0600
         os.replace(tmp, dest)
     finally:
         if tmp.exists():
@@ -1046,6 +1053,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     if args.R_ohm is not None and not (math.isfinite(args.R_ohm) and args.R_ohm > 0):
         raise FmuInputError(f"--R-ohm must be > 0, got {args.R_ohm!r}")
+    from .fileio import refuse_overwriting_inputs
+
+    refuse_overwriting_inputs(args.output, [args.fmu, args.recording])
     res = simulate_recording(args.fmu, args.recording, drive=args.drive, R_ohm=args.R_ohm,
                              G_eddy_S=args.G_eddy_S)
     args.output.parent.mkdir(parents=True, exist_ok=True)

@@ -1174,6 +1174,9 @@ def _cli(args) -> int:
     kw = {}
     if args.max_evals is not None:
         kw["max_nfev" if args.method == "gn" else "max_eval_auglag"] = args.max_evals
+    from .fileio import refuse_overwriting_inputs
+
+    refuse_overwriting_inputs(args.output, [*args.recordings, args.geometry, args.start_material])
     res = identify_from_recordings(args.recordings, geometry=args.geometry, start_material=args.start_material,
                                    mesh_size=args.mesh_size, out_csv=args.output, report_dir=args.report,
                                    progress=not args.json, method=args.method, **kw)

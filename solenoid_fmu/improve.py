@@ -709,6 +709,9 @@ def _cli(args) -> int:
     def progress(msg):
         print(msg, file=sys.stderr, flush=True)
 
+    from .fileio import refuse_overwriting_inputs
+
+    refuse_overwriting_inputs(args.output, [args.fmu, *args.recordings])
     res = improve(args.fmu, args.recordings, args.output, report_dir=args.report, max_effects=args.max_effects,
                   min_gain=args.min_gain, progress=progress)
     if args.json:

@@ -1116,6 +1116,10 @@ def _meta_problems(meta: dict) -> list[str]:
     problems = []
     if not isinstance(meta.get("name"), str):
         problems.append("'name' must be a string")
+    elif any(ord(ch) < 32 or ord(ch) == 127 for ch in meta["name"]) or len(meta["name"]) > 200:
+        # the name travels into modelDescription.xml, recording headers and C comments
+        problems.append(f"'name' must be one line of at most 200 characters without control characters, "
+                        f"got {meta['name'][:60]!r}")
     if meta.get("force_method") not in FORCE_METHODS:
         problems.append(
             f"'force_method' must be one of {list(FORCE_METHODS)}, got {meta.get('force_method')!r}"

@@ -201,6 +201,11 @@ class ModelError(Exception):
     """Base class of the errors this module raises (it cannot import the package's errors)."""
 
 
+#: Most sub-steps one communication step may take (as the native FMU's MAX_SUBSTEPS): beyond it the
+#: step is refused, never run for hours.
+MAX_SUBSTEPS = 1.0e7
+
+
 class ModelInputError(ModelError, ValueError):
     """An input or parameter is invalid: NaN or infinite, ``R <= 0``, ``G < 0``, bad mode."""
 
@@ -935,6 +940,9 @@ class SolenoidModel:
             t_s = float(t_s)
             if not t_s - t_s == 0.0:
                 raise ModelInputError(f"step start time {t_s!r} is not finite")
+        if h * inv_hsub > MAX_SUBSTEPS:  # also inf: h_sub_max_s = 1e-300 would never finish
+            raise ModelInputError(f"step h = {h!r} s needs more than {MAX_SUBSTEPS:.0f} sub-steps of h_sub_max_s = "
+                                  f"{1.0 / inv_hsub!r} s; take shorter communication steps or raise h_sub_max_s")
         if self._fx_on:
             self._step_fx(h, u, x_m, t_s)
             return

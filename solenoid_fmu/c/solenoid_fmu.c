@@ -158,10 +158,12 @@ static int psi_cell(double a, double *t)
 {
     double sc;
     int k;
-    if (a > SOL_PSI_MAX) a = SOL_PSI_MAX;
+    if (!(a <= SOL_PSI_MAX)) a = SOL_PSI_MAX;   /* also NaN: never a NaN table index */
+    if (!(a >= 0.0)) a = 0.0;
     sc = a * SOL_INV_DPSI;
     k = (int)sc;
     if (k > SOL_N_PSI - 2) k = SOL_N_PSI - 2;
+    if (k < 0) k = 0;
     *t = sc - k;
     return k;
 }
@@ -1217,10 +1219,30 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
         }
         u = c->voltage ? c->u_V : c->i_A;
     }
+    if (!(ceil(h * c->inv_hsub - 1e-9) <= MAX_SUBSTEPS)) {  /* again after a first initialization, and NaN */
+        say(in, fmi2Error, "doStep at t = %.17g s: step h = %.17g s needs more than %.0f sub-steps of h_sub_max_s "
+            "= %.17g s; take shorter communication steps or raise h_sub_max_s", t, h, MAX_SUBSTEPS, c->hsub);
+        return fmi2Error;
+    }
     if (!is_finite(u)) { say(in, fmi2Error, "doStep at t = %.17g s: input %s = %.17g is not finite", t, drive_name(c), u); return fmi2Error; }
     if (!is_finite(c->x_m)) { say(in, fmi2Error, "doStep at t = %.17g s: input x_m = %.17g is not finite", t, c->x_m); return fmi2Error; }
-    if (c->fx_on) sol_step_fx(in, t, h);
-    else sol_step(in, t, h);
+    {
+        double s_keep[N_STATE], fx_keep[N_FX];
+        int k;
+        for (k = 0; k < N_STATE; k++) s_keep[k] = c->s[k];
+        for (k = 0; k < N_FX; k++) fx_keep[k] = c->fx[k];
+        if (c->fx_on) sol_step_fx(in, t, h);
+        else sol_step(in, t, h);
+        for (k = 0; k < N_STATE; k++) if (!is_finite(c->s[k])) break;
+        if (k < N_STATE || !is_finite(c->fx[FX_T]) || !is_finite(c->fx[FX_IH])) {
+            for (k = 0; k < N_STATE; k++) c->s[k] = s_keep[k];
+            for (k = 0; k < N_FX; k++) c->fx[k] = fx_keep[k];
+            say(in, fmi2Error, "doStep at t = %.17g s: the state became non-finite (inputs or parameters far "
+                "outside the maps: %s = %.17g, G_eddy_S = %.17g); the step is refused and the state kept",
+                t, drive_name(c), u, c->G);
+            return fmi2Error;
+        }
+    }
     return fmi2OK;
 }
 

@@ -1,0 +1,164 @@
+"""Hostile but fair input (issue 13): code injection, unbounded sub-steps, NaN states, data loss, file modes."""
+
+import json
+import math
+import os
+import stat
+import time
+
+import mapsfixture
+import numpy as np
+import pytest
+
+from solenoid_fmu.fmu import build_fmu, simulate_recording
+from solenoid_fmu.model import MAX_SUBSTEPS, ModelInputError, SolenoidModel, load_tables
+from solenoid_fmu.recordings import make_recording, write_recording
+
+HOSTILE = 'x */ int evil = 1; /* "\\ #include <stdlib.h> //'
+
+
+@pytest.fixture(scope="module")
+def hostile_maps(tmp_path_factory):
+    d = mapsfixture.write_maps(tmp_path_factory.mktemp("hostile") / "maps")
+    meta = json.loads((d / "maps.json").read_text())
+    meta["name"] = HOSTILE
+    (d / "maps.json").write_text(json.dumps(meta))
+    return d
+
+
+@pytest.fixture(scope="module")
+def native(hostile_maps, tmp_path_factory):
+    return build_fmu(hostile_maps, tmp_path_factory.mktemp("hostile_fmu") / "h.fmu", backend="c")
+
+
+def test_a_hostile_maps_name_cannot_inject_c(native):
+    import zipfile
+
+    with zipfile.ZipFile(native) as zf:
+        header = zf.read("sources/solenoid_maps.h").decode()
+    first_comment = header[:header.index("*/") + 2]
+    assert "evil" not in header.split("*/", 1)[1]  # nothing of the name after the first comment closes
+    assert "#include <stdlib.h>" not in header and "\\" not in first_comment
+    assert first_comment.count("\n") == 3  # the name added no line
+
+
+def test_a_maps_name_with_control_characters_is_refused_by_name(hostile_maps, tmp_path):
+    import shutil
+
+    from solenoid_fmu.errors import SolenoidError
+
+    d = tmp_path / "m"
+    shutil.copytree(hostile_maps, d)
+    meta = json.loads((d / "maps.json").read_text())
+    meta["name"] = "line one\n#include <evil.h>"
+    (d / "maps.json").write_text(json.dumps(meta))
+    with pytest.raises(SolenoidError, match="'name' must be one line"):
+        build_fmu(d, tmp_path / "x.fmu", backend="c")
+    assert not (tmp_path / "x.fmu").exists()
+
+
+def test_fmus_are_written_with_the_mode_open_would_give(native):
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(native.stat().st_mode) == 0o666 & ~mask
+
+
+_SLAVE = """
+import json, math, sys, time
+import fmpy
+
+def slave(fmu, **reals):
+    md = fmpy.read_model_description(fmu)
+    s = fmpy.instantiate_fmu(fmpy.extract(fmu), md, fmi_type="CoSimulation")
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    for name, value in reals.items():
+        (s.setInteger if name == "drive_mode" else s.setReal)([vr[name]], [value])
+    s.exitInitializationMode()
+    return s, vr
+
+def step(s, t, h):
+    try:
+        s.doStep(t, h)
+        return "ok"
+    except Exception:
+        return "error"
+
+fmu, case = sys.argv[1], sys.argv[2]
+out = {}
+if case == "nan":
+    s, vr = slave(fmu, drive_mode=2, i_A=1.0, x_m=1.5e-3)
+    out["first"] = step(s, 0.0, 1e-3)
+    out["psi_ok"] = s.getReal([vr["psi_Wb"]])[0]
+    s.setReal([vr["i_A"]], [1e307])
+    out["huge_i"] = step(s, 1e-3, 1e-3)
+    out["after"] = s.getReal([vr["psi_Wb"], vr["F_N"], vr["U_V"]])
+    s2, vr = slave(fmu, drive_mode=2, G_eddy_S=1e308, i_A=1.0, x_m=1.5e-3)
+    out["huge_G"] = step(s2, 0.0, 1e-3)
+    out["after_G"] = s2.getReal([vr["psi_Wb"], vr["F_N"]])
+else:
+    s, vr = slave(fmu, drive_mode=1, h_sub_max_s=1e-300, U_V=12.0, x_m=1.5e-3)
+    t0 = time.perf_counter()
+    out["first"] = step(s, 0.0, 1.0)
+    out["seconds"] = time.perf_counter() - t0
+print("RESULT " + json.dumps(out))
+"""
+
+
+def _run_slave(fmu, case: str) -> dict:
+    """Drive the FMU in a fresh process (as a host would; no state shared with other tests' FMUs)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", _SLAVE, str(fmu), case], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]  # a crash (SIGSEGV) fails here
+    line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT "))
+    return json.loads(line[len("RESULT "):])
+
+
+def test_native_fmu_refuses_a_non_finite_state_and_keeps_the_last_one(native):
+    r = _run_slave(native, "nan")
+    assert r["first"] == "ok" and r["huge_i"] == "error" and r["huge_G"] == "error"
+    assert all(math.isfinite(v) for v in r["after"] + r["after_G"])
+    assert r["after"][0] == r["psi_ok"]  # the refused step left the state as it was
+
+
+def test_native_fmu_caps_sub_steps_on_the_first_step_too(native):
+    r = _run_slave(native, "cap")
+    assert r["first"] == "error" and r["seconds"] < 1.0
+
+
+def test_python_model_refuses_an_unbounded_number_of_sub_steps(hostile_maps):
+    tab = load_tables(hostile_maps)
+    m = SolenoidModel(tab, {"drive_mode": "voltage", "h_sub_max_s": 1e-300})
+    m.initialize(12.0, 1.5e-3)
+    t0 = time.perf_counter()
+    with pytest.raises(ModelInputError, match="sub-steps"):
+        m.step(1.0, 12.0, 1.5e-3)
+    m2 = SolenoidModel(tab, {"drive_mode": "voltage"})
+    m2.initialize(12.0, 1.5e-3)
+    with pytest.raises(ModelInputError, match=f"more than {MAX_SUBSTEPS:.0f}"):
+        m2.step(1e5, 12.0, 1.5e-3)  # a recording with a 1e5 s gap
+    m2.step(1e-3, 12.0, 1.5e-3)  # the state is intact: the next ordinary step works
+    assert math.isfinite(m2.psi_Wb) and time.perf_counter() - t0 < 1.0
+
+
+def test_simulate_refuses_to_overwrite_its_input(hostile_maps, tmp_path, capsys):
+    from solenoid_fmu.cli import main
+
+    fmu = build_fmu(hostile_maps, tmp_path / "p.fmu")
+    t = np.arange(200) * 1e-3
+    rec = write_recording(tmp_path / "r.csv", make_recording("flux", "X", t, 0.5 * np.sin(t * 10) ** 2,
+                                                            voltage_V=np.ones_like(t), position_m=1.5e-3,
+                                                            coil_resistance_ohm=12.0))
+    before = rec.read_bytes()
+    link = tmp_path / "link.csv"
+    link.symlink_to(rec)
+    for out in (rec, link):
+        assert main(["simulate", str(fmu), str(rec), "-o", str(out)]) != 0
+        assert "would overwrite the input" in capsys.readouterr().err
+    assert rec.read_bytes() == before
+    assert main(["simulate", str(fmu), str(rec), "-o", str(tmp_path / "sim.csv")]) == 0
+    assert simulate_recording(fmu, rec).recording.time_s.size == 200
