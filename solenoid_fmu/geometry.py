@@ -175,9 +175,13 @@ def load_geometry(path: str | Path | None = None) -> Geometry:
     return dataclasses.replace(geom, source_path=path.resolve(), sha256=hashlib.sha256(raw).hexdigest())
 
 
-def geometry_from_dict(data: dict, name: str = "<dict>") -> Geometry:
-    """Build and validate a geometry from a dict with the TOML file's structure (lengths in mm)."""
-    geom, problems = _from_dict(data, Path(name))
+def geometry_from_dict(data: dict, name: str = "<dict>", require_moving: bool = False) -> Geometry:
+    """Build and validate a geometry from a dict with the TOML file's structure (lengths in mm).
+
+    Unlike a geometry file (:func:`load_geometry`: exactly one moving region), a programmatic
+    geometry may have none (``require_moving=False``, static analytic cases); never more than one.
+    """
+    geom, problems = _from_dict(data, Path(name), require_moving)
     if geom is not None:
         problems += check_geometry(geom)
     if problems:
@@ -196,8 +200,37 @@ def _num(table: dict, key: str, where: str, problems: list[str], default=None) -
     return float(value)
 
 
-def _from_dict(data: dict, path: Path) -> tuple[Geometry | None, list[str]]:
-    problems: list[str] = []
+#: Keys each table may hold; any other key is an error (a misspelled ``mooves`` must not silently
+#: give a geometry without a moving region, i.e. F = 0 N everywhere).
+_KEYS = {
+    "": {"name", "description", "units", "region", "coil", "stroke", "domain", "notes"},
+    "region": {"name", "material", "polygon", "moves", "ampere_turns", "description", "notes"},
+    "coil": {"region", "turns", "resistance_ohm_20C", "temperature_coefficient_per_K", "max_current_A",
+             "description", "notes"},
+    "stroke": {"min_mm", "max_mm", "working_min_mm", "working_max_mm", "description", "notes"},
+    "domain": {"r_max_mm", "z_min_mm", "z_max_mm", "natural", "description", "notes"},
+}
+
+
+def _unknown_keys(data: dict) -> list[str]:
+    """Problems for keys the format does not know, naming table and key."""
+    out = [f"unknown key '{k}' at the top level (known: {sorted(_KEYS[''])})" for k in data if k not in _KEYS[""]]
+    for table in ("coil", "stroke", "domain"):
+        t = data.get(table)
+        if isinstance(t, dict):
+            out += [f"[{table}]: unknown key '{k}' (known: {sorted(_KEYS[table])})" for k in t if k not in _KEYS[table]]
+    regions = data.get("region")
+    if isinstance(regions, list):
+        for k, reg in enumerate(regions):
+            if isinstance(reg, dict):
+                where = f"region '{reg.get('name')}'" if isinstance(reg.get("name"), str) else f"region #{k + 1}"
+                out += [f"{where}: unknown key '{key}' (known: {sorted(_KEYS['region'])})" for key in reg
+                        if key not in _KEYS["region"]]
+    return out
+
+
+def _from_dict(data: dict, path: Path, require_moving: bool = True) -> tuple[Geometry | None, list[str]]:
+    problems: list[str] = _unknown_keys(data)
     units = data.get("units", "mm")
     if units != "mm":
         problems.append(f"units must be \"mm\", got {units!r}")
@@ -240,12 +273,19 @@ def _from_dict(data: dict, path: Path) -> tuple[Geometry | None, list[str]]:
             problems.append(f"{where}: open polygon: needs at least 3 distinct vertices, has {len(arr)}")
             continue
         at = reg.get("ampere_turns", 0.0)
+        moves = reg.get("moves", False)
+        if not isinstance(moves, bool):
+            problems.append(f"{where}: 'moves' must be true or false (a TOML boolean, no quotes), got {moves!r}")
+            continue
+        if isinstance(at, bool) or not isinstance(at, int | float) or not np.isfinite(at):
+            problems.append(f"{where}: 'ampere_turns' must be a finite number, got {at!r}")
+            continue
         regions.append(
             Region(
                 name=name,
                 material=material,
                 polygon_m=tuple((float(r) * MM, float(z) * MM) for r, z in arr),
-                moves=bool(reg.get("moves", False)),
+                moves=moves,
                 ampere_turns=float(at),
             )
         )
@@ -306,6 +346,10 @@ def _from_dict(data: dict, path: Path) -> tuple[Geometry | None, list[str]]:
             if rmax <= 0 or zmin >= zmax:
                 problems.append(f"[domain]: empty air box r_max={rmax:g}, z from {zmin:g} to {zmax:g}")
             domain = Domain(rmax * MM, zmin * MM, zmax * MM, natural)
+    n_moving = sum(r.moves for r in regions)
+    if regions and (n_moving > 1 or (require_moving and n_moving == 0)):
+        problems.append(f"exactly one region must have 'moves = true' (the armature), found {n_moving}"
+                        + ("" if n_moving else ": without one every force would be 0 N"))
     if problems or coil is None or stroke is None or domain is None:
         return None, problems
     geom = Geometry(

@@ -1172,6 +1172,8 @@ def _cli(args) -> int:
     import json
 
     kw = {}
+    if args.max_evals is not None and args.max_evals < 1:
+        raise SolenoidError(f"--max-evals must be >= 1, got {args.max_evals}")
     if args.max_evals is not None:
         kw["max_nfev" if args.method == "gn" else "max_eval_auglag"] = args.max_evals
     from .fileio import refuse_overwriting_inputs

@@ -829,9 +829,15 @@ def _source(obj) -> dict:
             "name": str(getattr(obj, "name", "") or "")}
 
 
+#: Most points of one sweep grid (positions or currents): 1000 x 1000 FEM solves is already days.
+MAX_GRID_POINTS = 1000
+
+
 def _grid(values, default, what: str, unit: str, scale: float) -> np.ndarray:
     if values is None:
         return default
+    if np.size(values) > MAX_GRID_POINTS:
+        raise MapsError(f"{what} grid has {np.size(values)} points, more than {MAX_GRID_POINTS}")
     try:
         arr = np.array(values, dtype=np.float64).ravel()
     except (TypeError, ValueError):
@@ -1599,6 +1605,9 @@ def parse_range(text: str, what: str = "range") -> tuple[float, float, int]:
         ) from None
     if n < 2:
         raise argparse.ArgumentTypeError(f"{what} {text!r}: N must be at least 2, got {n}")
+    if n > MAX_GRID_POINTS:
+        raise argparse.ArgumentTypeError(f"{what} {text!r}: N = {n} is more than {MAX_GRID_POINTS} points "
+                                         "(each is a FEM solve per point of the other grid)")
     if not start < stop:
         raise argparse.ArgumentTypeError(f"{what} {text!r}: START must be smaller than STOP")
     return start, stop, n

@@ -75,6 +75,8 @@ _REQUIRED_HEADER = ("recording", "kind", "solenoid")
 
 #: Row-level problems listed before the rest is summarised as "... and N more".
 MAX_LISTED_PROBLEMS = 20
+#: A time step larger than this many median sample periods is a gap in the acquisition (an error).
+MAX_GAP_PERIODS = 1000
 
 _KEY_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _NUM_RE = re.compile(r"[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*\Z", re.ASCII)
@@ -666,6 +668,13 @@ def _check_time(t: np.ndarray, rows: np.ndarray, first_line: int, probs: _Proble
         probs.add_row(first_line + int(rows[k + 1]),
                       f"{why}: time_s {cur!r} after {prev!r} on line {first_line + int(rows[k])} "
                       "(time must be strictly increasing)")
+    dt = np.diff(t)
+    if dt.size >= 2:
+        period = float(np.median(dt))
+        for k in np.flatnonzero(dt > MAX_GAP_PERIODS * period).tolist()[:MAX_LISTED_PROBLEMS]:
+            probs.add_row(first_line + int(rows[k + 1]),
+                          f"time gap of {float(dt[k])!r} s before this sample, more than {MAX_GAP_PERIODS} sample "
+                          f"periods ({period:.6g} s): split the recording where the acquisition stopped")
 
 
 def _diagnose_rows(data: list[str], first_line: int, names: list[str], probs: _Problems) -> None:
@@ -1160,6 +1169,10 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
     offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
     i, i_s = ic, i_s - i_off
 
+    if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
+        notes.append(f"the armature moves by {float(np.ptp(rec.position_m)) * 1e3:.4g} mm during the recording: Psi "
+                     "changes with the position too, so the branches and the 'hysteresis width' include motion "
+                     "and are not a property of the steel")
     if abs(float(i_s[0])) > thr:
         notes.append(f"the recording starts energized ({float(i_s[0]):.4g} A): Psi is the change since the "
                      "first sample (its integration constant Psi(0) is not measured)")

@@ -162,3 +162,64 @@ def test_simulate_refuses_to_overwrite_its_input(hostile_maps, tmp_path, capsys)
     assert rec.read_bytes() == before
     assert main(["simulate", str(fmu), str(rec), "-o", str(tmp_path / "sim.csv")]) == 0
     assert simulate_recording(fmu, rec).recording.time_s.size == 200
+
+
+# -- inputs that gave a wrong answer without a word ---------------------------------------------------
+def _geometry_text(**replace):
+    from solenoid_fmu.geometry import default_geometry_path
+
+    text = default_geometry_path().read_text()
+    for old, new in replace.items():
+        assert old.replace("_", " ") in text or old in text
+        text = text.replace(old, new, 1)
+    return text
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ("moves = true", "mooves = true", "unknown key 'mooves'"),
+    ("moves = true", "moves = \"false\"", "'moves' must be true or false"),
+    ("moves = true", "", "exactly one region must have 'moves = true'"),
+])
+def test_geometry_file_refuses_unknown_keys_wrong_types_and_no_armature(tmp_path, old, new, message):
+    from solenoid_fmu.errors import GeometryError
+    from solenoid_fmu.geometry import default_geometry_path, load_geometry
+
+    text = default_geometry_path().read_text()
+    assert old in text
+    path = tmp_path / "g.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(GeometryError, match=message):
+        load_geometry(path)
+
+
+def test_recording_with_an_acquisition_gap_is_refused_naming_the_line(tmp_path):
+    from solenoid_fmu.errors import RecordingError
+    from solenoid_fmu.recordings import read_recording
+
+    t = np.arange(100) * 1e-3
+    t[50:] += 1e5  # a 1e5 s gap (it would have made simulate run for hours)
+    path = write_recording(tmp_path / "gap.csv", make_recording("flux", "X", t, np.zeros(100), voltage_V=np.zeros(100),
+                                                              position_m=1e-3))
+    with pytest.raises(RecordingError, match=r"gap\.csv:56: time gap of 100000\.001"):
+        read_recording(path)
+
+
+def test_grids_and_budgets_are_bounded_with_a_message(capsys):
+    from solenoid_fmu.cli import main
+
+    with pytest.raises(SystemExit) as exc:  # argparse: usage and one line, exit status 2
+        main(["maps", "--x-mm", "0.5:2.5:1000000000", "-o", "/nonexistent/never"])
+    assert exc.value.code == 2 and "is more than 1000 points" in capsys.readouterr().err
+    assert main(["identify", "x.csv", "--max-evals", "0", "-o", "/nonexistent/x.csv"]) != 0
+    assert "--max-evals must be >= 1" in capsys.readouterr().err
+
+
+def test_flux_on_a_moving_armature_says_the_width_is_motion(tmp_path):
+    from solenoid_fmu.recordings import flux_linkage
+
+    t = np.arange(2000) * 1e-3
+    i = np.interp(t, [0, 0.2, 1.0, 1.8, 2.0], [0, 0, 1.0, 0, 0])
+    x = np.interp(t, [0, 0.5, 1.5, 2.0], [2e-3, 2e-3, 1e-3, 1e-3])
+    rec = make_recording("force_stroke", "X", t, i, voltage_V=12 * i, force_N=np.zeros_like(t), position_m=x,
+                         coil_resistance_ohm=12.0)
+    assert any("armature moves by 1 mm" in n for n in flux_linkage(rec).notes)
