@@ -1163,6 +1163,45 @@ def _meta_problems(meta: dict) -> list[str]:
     return problems
 
 
+#: Most elements one array of a maps.npz may declare (a 1000 x 1000 grid is far beyond any sweep).
+MAX_ARRAY_ELEMENTS = 10_000_000
+
+
+def _check_npz_members(raw: bytes, npz_path, shapes) -> None:
+    """Read every member's .npy header (not its data) and refuse, naming the member, a dtype that is not
+    numeric or boolean, a shape other than maps.json's ``arrays.shapes`` says, or more than
+    :data:`MAX_ARRAY_ELEMENTS` elements: a small file must not make the reader allocate gigabytes."""
+    import zipfile
+
+    problems = []
+    try:
+        with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+            for info in zf.infolist():
+                name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+                with zf.open(info) as fh:
+                    try:
+                        version = np.lib.format.read_magic(fh)
+                        if version == (1, 0):
+                            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+                        else:
+                            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+                    except ValueError as exc:
+                        problems.append(f"member {name!r}: not a .npy array ({exc})")
+                        continue
+                if dtype.kind not in "fiub":
+                    problems.append(f"member {name!r}: dtype {dtype} is not numeric")
+                n = int(np.prod(shape, dtype=np.float64))
+                if n > MAX_ARRAY_ELEMENTS:
+                    problems.append(f"member {name!r}: declares {n} elements (shape {shape}), more than "
+                                    f"{MAX_ARRAY_ELEMENTS}")
+                elif isinstance(shapes, dict) and name in shapes and list(shape) != list(shapes[name]):
+                    problems.append(f"member {name!r}: shape {list(shape)}, maps.json says {shapes[name]}")
+    except zipfile.BadZipFile as exc:
+        raise MapsError(f"{npz_path}: not a npz (zip) file: {exc}") from None
+    if problems:
+        raise MapsError(_problem_message(str(npz_path), problems))
+
+
 def load_maps(directory) -> CharacteristicMaps:
     """Read maps written by :func:`save_maps`, refusing anything malformed.
 
@@ -1217,6 +1256,7 @@ def load_maps(directory) -> CharacteristicMaps:
             f"{npz_path}: sha256 {digest[:12]}... does not match the {meta['arrays']['sha256'][:12]}... "
             f"recorded in {JSON_NAME}; the two files were not written together"
         )
+    _check_npz_members(raw, npz_path, (meta.get("arrays") or {}).get("shapes"))
     arrays: dict[str, np.ndarray] = {}
     problems = []
     try:
@@ -1364,6 +1404,31 @@ def export_combitable2d(maps: CharacteristicMaps, directory) -> list[Path]:
         _atomic_write(path, ("\n".join(lines) + "\n").encode("ascii"))
         out.append(path)
     return out
+
+
+#: Files derived from a map directory's arrays (``--mat``, ``--modelica``, ``--plot DIR/plots``).
+DERIVED_FILES = ("maps.mat", "i_f_A.txt", "force_N.txt")
+DERIVED_PLOTS = ("force_psi_x.png", "i_f_psi_x.png", "psi_i_per_x.png", "force_x_per_i.png")
+
+
+def remove_stale_exports(directory) -> list[Path]:
+    """Delete the exports and plots of an earlier build from a map directory that was just rebuilt
+    (they would describe the old grid); returns what was removed. Only the known file names are
+    touched (``plots/`` itself stays when it holds anything else)."""
+    directory = Path(directory)
+    removed = []
+    for name in DERIVED_FILES:
+        if (directory / name).is_file():
+            (directory / name).unlink()
+            removed.append(directory / name)
+    plots = directory / "plots"
+    for name in DERIVED_PLOTS:
+        if (plots / name).is_file():
+            (plots / name).unlink()
+            removed.append(plots / name)
+    if plots.is_dir() and not any(plots.iterdir()):
+        plots.rmdir()
+    return removed
 
 
 def read_combitable2d(path, table_name: str) -> np.ndarray:
@@ -1713,6 +1778,10 @@ def _cli(args) -> int:
             if executor is not None:
                 executor.shutdown()
         save_maps(maps, directory)
+        removed = remove_stale_exports(directory)
+        if removed:
+            print(f"removed {len(removed)} export(s) of the earlier build in {directory}: "
+                  + ", ".join(p.name for p in removed))
         solver = maps.metadata["provenance"]["solver"]
         ni, nx, npsi = maps.shape
         print(f"wrote {directory}/{NPZ_NAME}, {JSON_NAME}: {nx} positions x {ni} currents, "

@@ -223,3 +223,52 @@ def test_flux_on_a_moving_armature_says_the_width_is_motion(tmp_path):
     rec = make_recording("force_stroke", "X", t, i, voltage_V=12 * i, force_N=np.zeros_like(t), position_m=x,
                          coil_resistance_ohm=12.0)
     assert any("armature moves by 1 mm" in n for n in flux_linkage(rec).notes)
+
+
+def _npz_with_member(src_dir, dst_dir, name, header_array):
+    """Copy a maps dir, adding to maps.npz a member whose .npy header declares ``header_array``'s
+    dtype and a huge shape (the data is not there), with the sha256 in maps.json updated."""
+    import hashlib
+    import io
+    import shutil
+    import zipfile
+
+    shutil.copytree(src_dir, dst_dir)
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_2_0(buf, {"descr": np.lib.format.dtype_to_descr(header_array.dtype),
+                                               "fortran_order": False, "shape": header_array.shape})
+    with zipfile.ZipFile(dst_dir / "maps.npz", "a") as zf:
+        zf.writestr(f"{name}.npy", b"\x93NUMPY\x02\x00" + buf.getvalue()[8:] + b"\x00" * 64)
+    meta = json.loads((dst_dir / "maps.json").read_text())
+    meta.setdefault("arrays", {})["sha256"] = hashlib.sha256((dst_dir / "maps.npz").read_bytes()).hexdigest()
+    (dst_dir / "maps.json").write_text(json.dumps(meta))
+    return dst_dir
+
+
+def test_npz_members_are_checked_before_they_are_loaded(tmp_path):
+    from solenoid_fmu.errors import MapsError
+    from solenoid_fmu.maps import load_maps
+
+    src = mapsfixture.write_maps(tmp_path / "src")
+    huge = np.lib.stride_tricks.as_strided(np.zeros(1), shape=(100_000, 10_000), strides=(0, 0))  # 8 GB declared
+    d = _npz_with_member(src, tmp_path / "huge", "junk", huge)
+    t0 = time.perf_counter()
+    with pytest.raises(MapsError, match=r"member 'junk': declares 1000000000 elements"):
+        load_maps(d)
+    assert time.perf_counter() - t0 < 2.0
+    with pytest.raises(MapsError, match=r"member 'names': dtype <U5 is not numeric"):
+        load_maps(_npz_with_member(src, tmp_path / "str", "names", np.array(["abcde"])))
+
+
+def test_rebuilding_a_map_directory_removes_the_earlier_exports(tmp_path):
+    from solenoid_fmu.maps import DERIVED_PLOTS, remove_stale_exports
+
+    d = mapsfixture.write_maps(tmp_path / "m")
+    (d / "plots").mkdir()
+    for name in ("maps.mat", "i_f_A.txt", "force_N.txt"):
+        (d / name).write_text("old grid")
+    (d / "plots" / DERIVED_PLOTS[0]).write_text("old")
+    (d / "notes.md").write_text("mine")
+    removed = remove_stale_exports(d)
+    assert len(removed) == 4 and not (d / "plots").exists()
+    assert (d / "notes.md").is_file() and (d / "maps.npz").is_file() and (d / "maps.json").is_file()
