@@ -42,7 +42,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from threadpoolctl import threadpool_limits
 
-from .errors import SolverError
+from .errors import SolenoidError, SolverError
 from .geometry import Geometry, load_geometry
 from .material import MU_0, NU_0, BHCurve, load_material
 from .mesh import MorphMesh, build_mesh
@@ -641,11 +641,17 @@ def _cli_solve(args) -> int:
     solver = Solver(geom, mat, args.mesh_size)
     sol = solver.solve(args.i_A, args.x_mm * 1e-3)
     elapsed = time.perf_counter() - t0
+    plot_path = None
     if args.plot:
         from pathlib import Path
 
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        plot_field(solver, sol, args.plot)
+        plot_path = Path(args.plot)
+        if plot_path.is_dir():
+            raise SolenoidError(f"--plot {args.plot}: is a directory; give a .png file name")
+        if plot_path.suffix.lower() != ".png":
+            plot_path = plot_path.with_name(plot_path.name + ".png")  # what matplotlib would write anyway
+        plot_path.parent.mkdir(parents=True, exist_ok=True)
+        plot_field(solver, sol, plot_path)
     if args.json:
         print(json.dumps(sol.as_dict()))
     else:
@@ -654,8 +660,8 @@ def _cli_solve(args) -> int:
         print(f"  F (co-energy)      = {sol.force_coenergy_N:.3f} N")
         print(f"  F (Maxwell stress) = {sol.force_stress_N:.3f} N")
         print(f"  Newton iterations  = {sol.newton_iterations}")
-        if args.plot:
-            print(f"  field plot: {args.plot}")
+        if plot_path is not None:
+            print(f"  field plot: {plot_path}")
     return 0
 
 

@@ -311,7 +311,10 @@ def default_material_path() -> Path:
 def read_bh_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """Read a two-column CSV ``H_A_per_m,B_T`` (header line required); names file and line on error."""
     path = Path(path)
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise MaterialError(f"{path}: not a text (UTF-8) CSV file: byte {exc.start} cannot be decoded") from None
     rows = list(csv.reader(line for line in text.splitlines() if not line.startswith("#")))
     if not rows:
         raise MaterialError(f"{path}: empty file")

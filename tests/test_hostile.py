@@ -272,3 +272,41 @@ def test_rebuilding_a_map_directory_removes_the_earlier_exports(tmp_path):
     removed = remove_stale_exports(d)
     assert len(removed) == 4 and not (d / "plots").exists()
     assert (d / "notes.md").is_file() and (d / "maps.npz").is_file() and (d / "maps.json").is_file()
+
+
+def test_messages_are_one_line_not_tracebacks(hostile_maps, tmp_path, capsys):
+    from solenoid_fmu.cli import main
+
+    binary = tmp_path / "steel.csv"
+    binary.write_bytes(b"H,B\n\xff\xfe\x00\x01garbage")
+    assert main(["solve", "--x-mm", "1.5", "--i-A", "1", "--material", str(binary)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "not a text (UTF-8) CSV" in err and "Traceback" not in err
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["export", str(hostile_maps), "-o", str(blocker / "x.fmu")]) == 1  # parent is a file
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "Traceback" not in err
+    (tmp_path / "dir.fmu").mkdir()
+    assert main(["export", str(hostile_maps), "-o", str(tmp_path / "dir.fmu")]) == 1  # output is a directory
+    err = capsys.readouterr().err
+    assert "dir.fmu" in err and ".dir." not in err  # names the output, not the hidden temporary file
+
+
+def test_ctrl_c_during_start_up_is_one_line(monkeypatch, capsys):
+    from solenoid_fmu import cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["maps"]) == 130
+    assert capsys.readouterr().err.strip() == "interrupted"
+
+
+def test_solve_reports_the_plot_file_it_wrote(tmp_path, capsys):
+    from solenoid_fmu.cli import main
+
+    assert main(["solve", "--x-mm", "1.5", "--i-A", "1", "--mesh-size", "3", "--plot", str(tmp_path / "field")]) == 0
+    out = capsys.readouterr().out
+    assert f"field plot: {tmp_path / 'field.png'}" in out and (tmp_path / "field.png").is_file()
