@@ -26,7 +26,7 @@ name                    causality  variability  meaning
 ``out_of_map``          output     discrete     true while x or Psi is clamped to the map
 ``R_ohm``               parameter  tunable      coil resistance at 20 degC [ohm]
 ``G_eddy_S``            parameter  tunable      eddy-current conductance [S]
-``drive_mode``          parameter  fixed        enumeration: 1 voltage-driven, 2 current-driven
+``drive_mode``          parameter  fixed        Integer 1..2: 1 voltage-driven, 2 current-driven
 ``Psi0_Wb``             parameter  fixed        initial flux linkage [Wb]
 ``h_sub_max_s``         parameter  fixed        largest internal sub-step [s]
 ======================  =========  ===========  ======================================================
@@ -130,7 +130,7 @@ VARIABLES = (
     FmuVariable("R_ohm", "Real", "parameter", "tunable", "Ohm", "coil resistance R at 20 degC [ohm], > 0"),
     FmuVariable("G_eddy_S", "Real", "parameter", "tunable", "S",
                 "eddy-current conductance G_eddy [S] (the paper's L_eddy), >= 0"),
-    FmuVariable("drive_mode", "Enumeration", "parameter", "fixed", None,
+    FmuVariable("drive_mode", "Integer", "parameter", "fixed", None,
                 "drive mode: 1 = voltage-driven (input U_V), 2 = current-driven (input i_A)"),
     FmuVariable("Psi0_Wb", "Real", "parameter", "fixed", "Wb",
                 "initial flux linkage Psi(t0) [Wb] (ignored in current mode with G_eddy = 0)"),
@@ -192,7 +192,9 @@ UNIT_DEFINITIONS = {
 DISPLAY_UNITS = {"m": (("mm", 1000.0),), "Wb": (("mWb", 1000.0),)}
 
 #: Default experiment written into the FMU.
-DEFAULT_EXPERIMENT = {"startTime": "0.0", "stopTime": "0.5", "stepSize": "0.0001"}
+#: The tolerance is for importers that run the model exchange interface with their own solver (the
+#: co-simulation steps do not use it): 1e-6 relative keeps their flux error far below the maps' own.
+DEFAULT_EXPERIMENT = {"startTime": "0.0", "stopTime": "0.5", "tolerance": "1e-06", "stepSize": "0.0001"}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -569,7 +571,7 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
     -----
     Adds or replaces: root attributes (description with provenance, generation tool and UTC
     date, version), CoSimulation capability flags, ``UnitDefinitions`` (SI base-unit exponents),
-    ``TypeDefinitions`` (the ``DriveMode`` enumeration), ``DefaultExperiment``,
+    ``DefaultExperiment`` (with a tolerance),
     ``VendorAnnotations`` (maps provenance as JSON), a unit, description, variability and start
     value on every variable, and ``ModelStructure`` (Outputs without direct feedthrough;
     InitialUnknowns depending on the inputs and parameters). Also adds ``documentation/index.html``.
@@ -624,14 +626,9 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
         for dname, factor in DISPLAY_UNITS.get(name, ()):
             etree.SubElement(u, "DisplayUnit", name=dname, factor=_fmt(factor))
 
-    types = etree.Element("TypeDefinitions")
-    st = etree.SubElement(types, "SimpleType", name="DriveMode",
-                          description="which coil quantity drives the model")
-    en = etree.SubElement(st, "Enumeration")
-    etree.SubElement(en, "Item", name="voltage", value=str(_model.DRIVE_VOLTAGE),
-                     description="input U_V drives; outputs i_out_A, F_N, psi_Wb")
-    etree.SubElement(en, "Item", name="current", value=str(_model.DRIVE_CURRENT),
-                     description="input i_A drives; outputs U_out_V, F_N, psi_Wb")
+    # drive_mode is an Integer with min/max, not an Enumeration: libcosim (OSP) and Ecos drop FMI 2.0
+    # Enumeration variables, which made the current-driven mode unreachable there (issue 14)
+    types = None
 
     log_categories = children.get("LogCategories")
     experiment = etree.Element("DefaultExperiment", **DEFAULT_EXPERIMENT)
@@ -670,8 +667,9 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
         for child in list(sv):
             sv.remove(child)
         el = etree.SubElement(sv, spec.type)
-        if spec.type == "Enumeration":
-            el.set("declaredType", "DriveMode")
+        if spec.name == "drive_mode":
+            el.set("min", str(_model.DRIVE_VOLTAGE))
+            el.set("max", str(_model.DRIVE_CURRENT))
         if spec.unit is not None:
             el.set("unit", spec.unit)
             if spec.unit in DISPLAY_UNITS:
@@ -723,6 +721,17 @@ def finalize_model_description(fmu_path, *, tables: _model.MapTables, maps_dir, 
             os.unlink(tmp_name)
 
 
+#: The documentation page's note on the pythonfmu backend (issue 14: C/C++ hosts need libpython preloaded).
+DOC_PYTHON_BACKEND = (
+    "<li>The Python backend needs a Python 3 interpreter with numpy on the machine that runs the FMU. "
+    "In a C/C++ host (OMSimulator, libcosim, Ecos, Simulink) libpython must be loaded globally before the "
+    "FMU, or the host fails with <code>undefined symbol: _Py_NoneStruct</code> (or crashes): on Linux start "
+    "the host as <code>LD_PRELOAD=$(python3 -c \"import os, sysconfig as s; print(os.path.join("
+    "s.get_config_var('LIBDIR'), s.get_config_var('INSTSONAME')))\") HOST ...</code> with the python3 whose "
+    "numpy the FMU should use. Without that, use the native FMU (<code>solenoid-fmu export --backend c</code>): "
+    "no Python at run time.</li>")
+
+
 def _documentation_html(model_name: str, description: str, tables: _model.MapTables) -> str:
     rows = "\n".join(
         f"<tr><td><code>{html.escape(v.name)}</code></td><td>{v.causality}</td><td>{v.variability}</td>"
@@ -751,7 +760,7 @@ clamped and logged once per excursion (turn FMU logging on to see the messages);
 out_of_map is true meanwhile.</li>
 <li>A NaN or infinite input, R_ohm &lt;= 0 or G_eddy_S &lt; 0 is logged with status error and
 fmi2DoStep returns fmi2Discard; the state is left unchanged.</li>
-<li>The Python backend needs a Python 3 interpreter with numpy on the machine that runs the FMU.</li>
+{DOC_PYTHON_BACKEND}
 </ul>
 </body></html>
 """
@@ -1042,10 +1051,27 @@ def add_cli(subparsers) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    from .fileio import refuse_overwriting_inputs
+
+    refuse_overwriting_inputs(args.output, [args.maps_dir / "maps.npz", args.maps_dir / "maps.json"])
     path = build_fmu(args.maps_dir, args.output, backend=args.backend, model_name=args.name)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, backend {args.backend}; "
           "fmpy validation: no problems)")
+    print(backend_advice(args.backend))
     return 0
+
+
+def backend_advice(backend: str) -> str:
+    """Which FMU to use in which importer (printed by ``export``; README "Which export to use when")."""
+    if backend == "c":
+        return ("native FMU: runs in any FMI 2.0 importer (fmpy, Simulink, OpenModelica/OMSimulator, libcosim, "
+                "Ecos, real-time targets), co-simulation and model exchange, no Python at run time")
+    import sysconfig
+
+    lib = os.path.join(sysconfig.get_config_var("LIBDIR") or "", sysconfig.get_config_var("INSTSONAME") or "")
+    return ("pythonfmu FMU: runs in Python hosts (fmpy, PyFMI) as it is; in C/C++ hosts (OMSimulator, libcosim, "
+            f"Ecos, Simulink) start the host with LD_PRELOAD={lib} (this Python's libpython, with numpy), "
+            "or export --backend c for those hosts")
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:

@@ -442,7 +442,6 @@ def build_c_fmu(maps_dir, dest, tables: _model.MapTables) -> str:
     return f"solenoid-fmu {__version__} (c backend: generated C99, compiled with {cc})"
 
 
-_DOC_PY = "<li>The Python backend needs a Python 3 interpreter with numpy on the machine that runs the FMU.</li>"
 _DOC_C = ("<li>Native FMU (generated C, no Python at run time): co-simulation and model exchange in one "
           "binary; <code>sources/</code> builds it for other platforms (CMakeLists.txt). Model exchange: "
           "state psi_state_Wb (with effects also the eddy-ladder currents and the temperature rise); "
@@ -462,6 +461,7 @@ def finish_model_description(fmu_path, tables: _model.MapTables) -> None:
     """
     from lxml import etree
 
+    from .fmu import DOC_PYTHON_BACKEND as _DOC_PY
     from .fmu import MODEL_IDENTIFIER, interface_for
 
     variables = interface_for(tables)
@@ -536,7 +536,7 @@ def finish_model_description(fmu_path, tables: _model.MapTables) -> None:
                 elif info.filename == "documentation/index.html":
                     text = data.decode("utf-8")
                     if _DOC_PY not in text:
-                        raise FmuBuildError("documentation page changed; update solenoid_fmu.fmu_c._DOC_PY")
+                        raise FmuBuildError("documentation page changed; update solenoid_fmu.fmu.DOC_PYTHON_BACKEND")
                     text = text.replace(_DOC_PY, _DOC_C).replace("fmi2DoStep returns fmi2Discard",
                                                                  "fmi2DoStep returns fmi2Error")
                     data = text.encode("utf-8")

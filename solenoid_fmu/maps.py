@@ -1195,7 +1195,8 @@ def _check_npz_members(raw: bytes, npz_path, shapes) -> None:
                     problems.append(f"member {name!r}: declares {n} elements (shape {shape}), more than "
                                     f"{MAX_ARRAY_ELEMENTS}")
                 elif isinstance(shapes, dict) and name in shapes and list(shape) != list(shapes[name]):
-                    problems.append(f"member {name!r}: shape {list(shape)}, maps.json says {shapes[name]}")
+                    problems.append(f"{name} has shape {tuple(shape)}, expected {tuple(shapes[name])} "
+                                    f"(maps.json arrays.shapes)")
     except zipfile.BadZipFile as exc:
         raise MapsError(f"{npz_path}: not a npz (zip) file: {exc}") from None
     if problems:

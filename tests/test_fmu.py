@@ -154,7 +154,9 @@ def test_model_description_is_complete(md, fmu_path, maps_dir):
         if v.causality == "parameter":
             assert v.variability in ("fixed", "tunable") and v.start is not None
     dm = md.modelVariables[names.index("drive_mode")]
-    assert dm.type == "Enumeration" and dm.declaredType.name == "DriveMode"
+    # an Integer 1..2, not an Enumeration: libcosim and Ecos drop Enumeration variables (issue 14)
+    assert dm.type == "Integer" and float(dm.min) == 1 and float(dm.max) == 2 and dm.declaredType is None
+    assert md.defaultExperiment.tolerance is not None and float(md.defaultExperiment.tolerance) == 1e-6
     outputs = [v for v in md.modelVariables if v.causality == "output"]
     assert {u.variable.name for u in md.outputs} == {v.name for v in outputs}
     assert {u.variable.name for u in md.initialUnknowns} == {v.name for v in outputs}

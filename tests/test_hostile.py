@@ -310,3 +310,19 @@ def test_solve_reports_the_plot_file_it_wrote(tmp_path, capsys):
     assert main(["solve", "--x-mm", "1.5", "--i-A", "1", "--mesh-size", "3", "--plot", str(tmp_path / "field")]) == 0
     out = capsys.readouterr().out
     assert f"field plot: {tmp_path / 'field.png'}" in out and (tmp_path / "field.png").is_file()
+
+
+def test_export_says_which_backend_suits_which_host(hostile_maps, tmp_path, capsys):
+    import re
+    import zipfile
+
+    from solenoid_fmu.cli import main
+
+    assert main(["export", str(hostile_maps), "-o", str(tmp_path / "p.fmu")]) == 0
+    out = capsys.readouterr().out
+    lib = re.search(r"LD_PRELOAD=(\S+)", out).group(1)
+    assert os.path.isfile(lib) and "libpython" in lib and "--backend c" in out
+    doc = zipfile.ZipFile(tmp_path / "p.fmu").read("documentation/index.html").decode()
+    assert "LD_PRELOAD" in doc and "_Py_NoneStruct" in doc
+    assert main(["export", str(hostile_maps), "-o", str(hostile_maps / "maps.json")]) == 1  # never over an input
+    assert "would overwrite the input" in capsys.readouterr().err
