@@ -326,3 +326,44 @@ def test_export_says_which_backend_suits_which_host(hostile_maps, tmp_path, caps
     assert "LD_PRELOAD" in doc and "_Py_NoneStruct" in doc
     assert main(["export", str(hostile_maps), "-o", str(hostile_maps / "maps.json")]) == 1  # never over an input
     assert "would overwrite the input" in capsys.readouterr().err
+
+
+_STATE = """
+import sys, fmpy
+fmu, case = sys.argv[1], sys.argv[2]
+md = fmpy.read_model_description(fmu)
+s = fmpy.instantiate_fmu(fmpy.extract(fmu), md, fmi_type="CoSimulation")
+vr = {v.name: v.valueReference for v in md.modelVariables}
+s.setupExperiment(startTime=0.0); s.enterInitializationMode()
+s.setReal([vr["U_V"]], [12.0]); s.exitInitializationMode()
+s.doStep(0.0, 1e-3)
+good = bytes(s.serializeFMUstate(s.getFMUstate()))
+psi = s.getReal([vr["psi_Wb"]])[0]
+bad = {"bytes": b"\\xff\\xfe garbage", "json": b'{"layout": 999}', "good": good}[case]
+try:
+    s.setFMUstate(s.deSerializeFMUstate(bad))
+    print("STATUS ok")
+except Exception as exc:
+    print("STATUS refused", exc)
+print("SAME", s.getReal([vr["psi_Wb"]])[0] == psi)
+s.doStep(1e-3, 1e-3)
+s.terminate(); s.freeInstance()
+print("FREED")
+"""
+
+
+@pytest.mark.parametrize("case", ["bytes", "json", "good"])
+def test_pythonfmu_refuses_a_foreign_state_and_keeps_its_own(hostile_maps, tmp_path, case):
+    import subprocess
+    import sys
+
+    fmu = build_fmu(hostile_maps, tmp_path / "p.fmu")
+    proc = subprocess.run([sys.executable, "-c", _STATE, str(fmu), case], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-1500:]  # no crash, also not on free
+    out = proc.stdout
+    assert "SAME True" in out and "FREED" in out
+    if case == "good":
+        assert "STATUS ok" in out
+    else:  # pythonfmu's wrapper can only refuse with fmi2Fatal (status 4); never a silent OK
+        assert "STATUS refused" in out and "status 4" in out
