@@ -83,7 +83,9 @@ __all__ = [
     "add_cli",
     "build_fmu",
     "finalize_model_description",
+    "fmi2_callbacks",
     "load_maps_tables",
+    "release_fmi2_callbacks",
     "simulate_model",
     "simulate_recording",
 ]
@@ -818,6 +820,64 @@ DRIVE_BY_KIND = {"flux": "current", "force_stroke": "current", "ramp": "current"
                  "voltage_step": "voltage"}
 
 
+#: Log sinks of :func:`fmi2_callbacks` by componentEnvironment key; the one ctypes logger of the process.
+_LOG_SINKS: dict = {}
+_LOG_STATE = {"next_key": 1, "logger": None}
+
+
+def _dispatch_fmi2_log(env, instance, status, category, message) -> None:
+    """The process-wide FMI logger: hands a message to the sink registered for ``env`` (fmpy's
+    printLogMessage for callbacks that are not ours, e.g. fmpy's defaults)."""
+    sink = _LOG_SINKS.get(env)
+    if sink is None:
+        from fmpy.fmi1 import printLogMessage
+
+        printLogMessage(env, instance, status, category, message)
+        return
+    sink(int(status), (category or b"").decode("utf-8", "replace"), (message or b"").decode("utf-8", "replace"))
+
+
+def fmi2_callbacks(log):
+    """fmpy ``fmi2CallbackFunctions`` whose logger calls ``log(status, category, message)`` (int, str, str).
+
+    fmpy's native logger proxy (``fmpy.logging.addLoggerProxy``, which formats the FMU's printf-style
+    messages) keeps ONE logger for the whole process, the last one registered. A ctypes callback made
+    per FMU instance is freed with the instance and leaves that slot dangling: the next message of any
+    FMU instantiated with fmpy's default callbacks then crashes the process (SIGSEGV). So the proxy
+    always points to one callback that lives as long as the process, which passes each message to the
+    ``log`` registered under the callbacks' componentEnvironment. Call :func:`release_fmi2_callbacks`
+    when the instance is freed (an unreleased sink only keeps ``log`` alive).
+    """
+    from ctypes import byref
+
+    import fmpy
+    from fmpy.fmi2 import (
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+    )
+    from fmpy.logging import addLoggerProxy
+
+    if _LOG_STATE["logger"] is None:
+        _LOG_STATE["logger"] = fmi2CallbackLoggerTYPE(_dispatch_fmi2_log)
+    key = _LOG_STATE["next_key"]
+    _LOG_STATE["next_key"] = key + 1
+    _LOG_SINKS[key] = log
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = _LOG_STATE["logger"]
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+    callbacks.componentEnvironment = key
+    addLoggerProxy(byref(callbacks))
+    return callbacks
+
+
+def release_fmi2_callbacks(callbacks) -> None:
+    """Forget the log sink of callbacks made by :func:`fmi2_callbacks` (after fmi2FreeInstance)."""
+    _LOG_SINKS.pop(callbacks.componentEnvironment, None)
+
+
 def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float | None = None,
                        G_eddy_S: float | None = None, Psi0_Wb: float | None = None,
                        params: dict | None = None) -> SimulationResult:
@@ -861,18 +921,9 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     samples k and k+1 (voltage drive: the trapezoid that paper eq. 4 integrates), with the gap of
     sample k+1. Sample 0 is the output after initialization.
     """
-    from ctypes import byref
-
     import fmpy
     from fmpy.fmi1 import FMICallException
-    from fmpy.fmi2 import (
-        FMU2Slave,
-        fmi2CallbackAllocateMemoryTYPE,
-        fmi2CallbackFreeMemoryTYPE,
-        fmi2CallbackFunctions,
-        fmi2CallbackLoggerTYPE,
-    )
-    from fmpy.logging import addLoggerProxy
+    from fmpy.fmi2 import FMU2Slave
 
     from .recordings import Recording, read_recording
 
@@ -903,14 +954,9 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     messages: list[str] = []
     status_names = {0: "ok", 1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
 
-    def log(env, instance, status, category, message):
-        messages.append(f"{status_names.get(status, status)}: {message.decode('utf-8', 'replace')}")
+    def log(status, category, message):
+        messages.append(f"{status_names.get(status, status)}: {message}")
 
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(log)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-    addLoggerProxy(byref(callbacks))
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
                     instanceName="simulate")
     n = t.size
@@ -922,6 +968,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     for name in params or {}:
         if name not in vrs or name in ("U_V", "i_A", "x_m", "drive_mode"):
             raise FmuInputError(f"{fmu_path}: no settable parameter {name!r} in this FMU")
+    callbacks = fmi2_callbacks(log)
     try:
         fmu.instantiate(callbacks=callbacks, loggingOn=True)
         try:
@@ -956,6 +1003,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
         finally:
             fmu.freeInstance()
     finally:
+        release_fmi2_callbacks(callbacks)
         shutil.rmtree(unzip, ignore_errors=True)
     return _simulated(rec, drive, u, out, out_names, f"{fmu_path.name} ({md.modelName})", messages)
 

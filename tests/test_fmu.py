@@ -9,7 +9,6 @@ import subprocess
 import sys
 import textwrap
 import zipfile
-from ctypes import byref
 from pathlib import Path
 
 import fmpy
@@ -17,14 +16,7 @@ import mapsfixture as mf
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi2 import FMU2Slave
 
 from solenoid_fmu import cli
 from solenoid_fmu import fmu as F
@@ -70,14 +62,9 @@ class Instance:
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.messages = []
 
-        def log(env, instance, status, category, message):
-            self.messages.append((status, message.decode("utf-8", "replace")))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(log)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-        addLoggerProxy(byref(cb))
+        # the package's process-wide logger: a per-instance ctypes logger would leave fmpy's one logger
+        # slot dangling after the instance is freed (the next FMU message anywhere would crash)
+        cb = F.fmi2_callbacks(lambda status, category, message: self.messages.append((status, message)))
         self._cb = cb  # keep the callbacks alive as long as the instance
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
@@ -110,6 +97,7 @@ class Instance:
     def free(self):
         self.fmu.terminate()
         self.fmu.freeInstance()
+        F.release_fmi2_callbacks(self._cb)
 
 
 def model_run(tab, mode, params, u0, x0, inputs, h):

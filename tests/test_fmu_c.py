@@ -7,7 +7,6 @@ import math
 import shutil
 import subprocess
 import zipfile
-from ctypes import byref
 from pathlib import Path
 
 import fmpy
@@ -15,14 +14,7 @@ import mapsfixture as mf
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Model,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi2 import FMU2Model
 from lxml import etree
 from test_fmu import OUTS, X_M, Instance, _measured, model_run, scenario
 
@@ -271,14 +263,9 @@ class MeInstance:
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.messages = []
 
-        def log(env, instance, status, category, message):
-            self.messages.append((status, message.decode("utf-8", "replace")))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(log)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-        addLoggerProxy(byref(cb))
+        # the package's process-wide logger: a per-instance ctypes logger would leave fmpy's one logger
+        # slot dangling after the instance is freed (the next FMU message anywhere would crash)
+        cb = F.fmi2_callbacks(lambda status, category, message: self.messages.append((status, message)))
         self._cb = cb
         self.mode = mode
         f = self.fmu = FMU2Model(guid=md.guid, unzipDirectory=unzipped,
@@ -307,6 +294,7 @@ class MeInstance:
     def free(self):
         self.fmu.terminate()
         self.fmu.freeInstance()
+        F.release_fmi2_callbacks(self._cb)
 
 
 def _me_reference(tab, mode, R, G, psi, u, x):
