@@ -1203,6 +1203,19 @@ def _check_npz_members(raw: bytes, npz_path, shapes) -> None:
         raise MapsError(_problem_message(str(npz_path), problems))
 
 
+def _first_non_finite(obj, where: str = ""):
+    """(key path, value) of the first NaN or infinite number in parsed JSON ``obj``, or None."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return where or "(top level)", obj
+    items = obj.items() if isinstance(obj, dict) else enumerate(obj) if isinstance(obj, list) else ()
+    for key, value in items:
+        found = _first_non_finite(value, f"{where}[{key}]" if isinstance(key, int) else
+                                  f"{where}.{key}" if where else str(key))
+        if found is not None:
+            return found
+    return None
+
+
 def load_maps(directory) -> CharacteristicMaps:
     """Read maps written by :func:`save_maps`, refusing anything malformed.
 
@@ -1239,6 +1252,10 @@ def load_maps(directory) -> CharacteristicMaps:
         raise MapsError(f"{json_path}: not UTF-8 text") from None
     if not isinstance(meta, dict):
         raise MapsError(f"{json_path}: top level must be a JSON object")
+    bad = _first_non_finite(meta)
+    if bad is not None:
+        raise MapsError(f"{json_path}: {bad[0]} = {bad[1]!r} is not a finite number (NaN and Infinity are not "
+                        "JSON and would reach the FMU)")
     if meta.get("schema") != SCHEMA:
         raise MapsError(f"{json_path}: schema is {meta.get('schema')!r}, expected {SCHEMA!r}: not a map file")
     version = meta.get("schema_version")

@@ -1139,15 +1139,18 @@ def _effects_data(tables: MapTables) -> dict:
                 gb = [float(v) for v in shape.get("b_nodes", ())]
                 gg = [float(v) for v in shape.get("g_nodes", ())]
                 ok = (len(r) == len(wts) >= 1 and all(v > 0 for v in r) and all(v >= 0 for v in wts)
-                      and len(gb) == len(gg) and all(gb[k + 1] > gb[k] for k in range(len(gb) - 1)))
+                      and len(gb) == len(gg) and all(gb[k + 1] > gb[k] for k in range(len(gb) - 1))
+                      and all(math.isfinite(v) for v in r + wts + gb + gg))
                 if not ok:
-                    raise ValueError("thresholds > 0 and weights >= 0 of equal length, increasing shape nodes")
+                    raise ValueError("finite thresholds > 0 and weights >= 0 of equal length, finite increasing "
+                                     "shape nodes and factors")
                 out[name] = {"r": r, "w": wts, "gb": gb, "gg": gg, "thresholds": r}
             elif name == "eddy_ladder":
                 G = [float(v) for v in data["G_S"]]
                 tau = [float(v) for v in data["tau_s"]]
-                if not (len(G) == len(tau) >= 1 and all(v >= 0 for v in G) and all(v > 0 for v in tau)):
-                    raise ValueError("G_S >= 0 and tau_s > 0 of equal length")
+                if not (len(G) == len(tau) >= 1 and all(0 <= v < math.inf for v in G)
+                        and all(0 < v < math.inf for v in tau)):
+                    raise ValueError("finite G_S >= 0 and tau_s > 0 of equal length")
                 out[name] = {"G_S": G, "tau_s": tau}
             else:
                 vals = {k: float(v) for k, v in data.items()}

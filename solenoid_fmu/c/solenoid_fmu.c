@@ -1085,6 +1085,30 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
 }
 
 /* ---- FMU state ---------------------------------------------------------------------------- */
+/* Why a state (from fmi2SetFMUstate or fmi2DeSerializeFMUstate) is not one this FMU can continue
+ * from, or NULL: layout, finite model and effect states, parameters in use as apply_params leaves
+ * them (finite; h_sub_max_s > 0 with inv_hsub = 1 / h_sub_max_s, so the sub-step cap holds; m = 1 + R G
+ * is left out: it overflows to inf for an absurd G), flags 0 or 1, drive mode 1 or 2. Inputs and
+ * parameters as set may be anything: they are checked when used. */
+static const char *core_problem(const Core *c)
+{
+    const int flags[] = { c->voltage, c->dirty, c->ready, c->hyst_set, c->lad_set, c->heat_set, c->fric_set,
+                          c->fx_on, c->hyst_on, c->lad_on, c->heat_on, c->fric_on };
+    const double used[] = { c->R, c->G, c->Psi0, c->t0_s, c->gain, c->Cth, c->Rth, c->alpha,
+                            c->fricN, c->presl, c->me_time_s, c->me_psi_Wb, c->me_T };
+    size_t k;
+    if (c->s[ST_LAYOUT] != STATE_LAYOUT) return "state layout";
+    for (k = 0; k < N_STATE; k++) if (!is_finite(c->s[k])) return "model state not finite";
+    for (k = 0; k < N_FX; k++) if (!is_finite(c->fx[k])) return "effect state not finite";
+    for (k = 0; k < LAD_ALLOC; k++) if (!is_finite(c->me_lad[k])) return "eddy-ladder state not finite";
+    for (k = 0; k < sizeof used / sizeof used[0]; k++) if (!is_finite(used[k])) return "parameter in use not finite";
+    for (k = 0; k < sizeof flags / sizeof flags[0]; k++) if (flags[k] != 0 && flags[k] != 1) return "flag not 0 or 1";
+    if (c->drive_set != DRIVE_VOLTAGE && c->drive_set != DRIVE_CURRENT) return "drive_mode not 1 or 2";
+    if (!(is_finite(c->hsub) && c->hsub > 0.0 && c->inv_hsub == 1.0 / c->hsub)) return "h_sub_max_s in use";
+    if (c->fx_on != (c->hyst_on || c->lad_on || c->heat_on || c->fric_on)) return "effect switches";
+    return NULL;
+}
+
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state)
 {
     Inst *in = (Inst *)comp;
@@ -1101,8 +1125,11 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state)
 {
     Inst *in = (Inst *)comp;
     const Core *c = (const Core *)state;
+    const char *why;
     if (in == NULL) return fmi2Error;
-    if (c == NULL || c->s[ST_LAYOUT] != STATE_LAYOUT) { say(in, fmi2Error, "fmi2SetFMUstate: not a state of this FMU"); return fmi2Error; }
+    if (c == NULL) { say(in, fmi2Error, "fmi2SetFMUstate: no state given"); return fmi2Error; }
+    why = core_problem(c);
+    if (why != NULL) { say(in, fmi2Error, "fmi2SetFMUstate: not a state of this FMU (%s); the state is kept", why); return fmi2Error; }
     memcpy(&in->core, c, sizeof(Core));
     return fmi2OK;
 }
@@ -1147,6 +1174,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
     Inst *in = (Inst *)comp;
     unsigned int head[2];
     Core tmp;
+    const char *why;
     if (in == NULL || state == NULL || serializedState == NULL) return fmi2Error;
     if (size != SERIAL_HEADER + sizeof(Core) || memcmp(serializedState, SERIAL_MAGIC, 8) != 0) {
         say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a serialized state of this FMU (%lu bytes)", (unsigned long)size);
@@ -1154,10 +1182,14 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
     }
     memcpy(head, serializedState + 8, 8);
     memcpy(&tmp, serializedState + SERIAL_HEADER, sizeof(Core));
-    if (head[0] != (unsigned int)STATE_LAYOUT || head[1] != sizeof(Core) || tmp.s[ST_LAYOUT] != STATE_LAYOUT
-        || !is_finite(tmp.s[ST_TIME]) || !is_finite(tmp.s[ST_PSI])) {
+    if (head[0] != (unsigned int)STATE_LAYOUT || head[1] != sizeof(Core)) {
         say(in, fmi2Error, "fmi2DeSerializeFMUstate: state layout %u does not match this FMU's %u", head[0],
             (unsigned int)STATE_LAYOUT);
+        return fmi2Error;
+    }
+    why = core_problem(&tmp);
+    if (why != NULL) {
+        say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a valid state of this FMU (%s)", why);
         return fmi2Error;
     }
     if (*state == NULL) {
