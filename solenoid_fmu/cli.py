@@ -61,6 +61,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _not_a_directory(path, strerror: str) -> str:
+    """The message for a folder that cannot be made because ``path`` or one of its parents is a file
+    (``mkdir`` raises FileExistsError or NotADirectoryError): names that file."""
+    from pathlib import Path
+
+    for p in (Path(path), *Path(path).parents):
+        if p.exists() and not p.is_dir():
+            where = "" if p == Path(path) else f"cannot write there, {p} "
+            return f"{path}: {where}is a file, not a directory"
+    return f"{strerror}: {path}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (also used by ``python -m solenoid_fmu``).
 
@@ -77,7 +89,10 @@ def main(argv: list[str] | None = None) -> int:
     except SolenoidError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, FileExistsError, PermissionError) as exc:
+    except (FileExistsError, NotADirectoryError) as exc:
+        print(f"error: {_not_a_directory(exc.filename2 or exc.filename, exc.strerror)}", file=sys.stderr)
+        return 1
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         # os.replace(temporary, destination) names the destination second: report that one
         print(f"error: {exc.strerror}: {exc.filename2 or exc.filename}", file=sys.stderr)
         return 1

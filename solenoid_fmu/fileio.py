@@ -20,19 +20,37 @@ class OutputError(SolenoidError):
     """An output path that would destroy an input, or that cannot be written."""
 
 
-def refuse_overwriting_inputs(output, inputs) -> Path:
-    """``output`` as a Path, unless it is (after resolving symlinks) one of ``inputs`` or lies inside
-    an input directory's files: then :class:`OutputError` naming both. A result must never replace
-    the measured data it came from."""
+def refuse_overwriting_inputs(output, inputs, written=None) -> Path:
+    """``output`` as a Path, unless writing it would destroy or pollute an input: then
+    :class:`OutputError` naming both. After resolving symlinks, an input must not be ``output`` itself,
+    nor equal to or lie under one of ``written`` (the paths the command writes; default ``[output]``,
+    i.e. everything under an output directory; ``[]`` checks ``output`` alone), and ``output`` must
+    not lie inside an input directory (results would mix with, and be read back as, the inputs).
+    A result must never replace the measured data it came from."""
     out = Path(output)
     target = out.resolve()
+    targets = [target] if written is None else [Path(w).resolve() for w in written]
     for item in inputs:
         if item is None:
             continue
         src = Path(item).resolve()
-        if target == src:
+        if target == src or any(src == w or w in src.parents for w in targets):
             raise OutputError(f"{out}: the output would overwrite the input {item}; choose another path")
+        if src in target.parents and src.is_dir():
+            raise OutputError(f"{out}: the output lies inside the input folder {item}; choose a path outside it")
     return out
+
+
+def require_directory(path, what: str = "output") -> Path:
+    """``path`` as a Path, unless it or one of its parents is an existing non-directory: then
+    :class:`OutputError` naming that file (checked before any work, so a long run cannot fail at
+    its last step)."""
+    path = Path(path)
+    for p in (path, *path.parents):
+        if p.exists() and not p.is_dir():
+            where = "" if p == path else f"{p} "
+            raise OutputError(f"{what} {path}: {where}is a file, not a directory")
+    return path
 
 
 def _umask() -> int:

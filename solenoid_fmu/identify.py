@@ -1176,9 +1176,14 @@ def _cli(args) -> int:
         raise SolenoidError(f"--max-evals must be >= 1, got {args.max_evals}")
     if args.max_evals is not None:
         kw["max_nfev" if args.method == "gn" else "max_eval_auglag"] = args.max_evals
-    from .fileio import refuse_overwriting_inputs
+    from .fileio import refuse_overwriting_inputs, require_directory
 
-    refuse_overwriting_inputs(args.output, [*args.recordings, args.geometry, args.start_material])
+    inputs = [*args.recordings, args.geometry, args.start_material]
+    out = Path(args.output)
+    require_directory(out.parent, "-o")
+    refuse_overwriting_inputs(out, inputs, written=[out, out.with_suffix(".bh"), out.with_suffix(".tab")])
+    if args.report is not None:
+        refuse_overwriting_inputs(require_directory(args.report, "--report"), inputs, written=[])
     res = identify_from_recordings(args.recordings, geometry=args.geometry, start_material=args.start_material,
                                    mesh_size=args.mesh_size, out_csv=args.output, report_dir=args.report,
                                    progress=not args.json, method=args.method, **kw)

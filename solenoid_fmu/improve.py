@@ -712,6 +712,10 @@ def _cli(args) -> int:
     from .fileio import refuse_overwriting_inputs
 
     refuse_overwriting_inputs(args.output, [args.fmu, *args.recordings])
+    if args.report is not None:
+        from .fileio import require_directory
+
+        refuse_overwriting_inputs(require_directory(args.report, "--report"), [args.fmu, *args.recordings], written=[])
     res = improve(args.fmu, args.recordings, args.output, report_dir=args.report, max_effects=args.max_effects,
                   min_gain=args.min_gain, progress=progress)
     if args.json:

@@ -1118,14 +1118,20 @@ def save_maps(maps: CharacteristicMaps, directory) -> Path:
     return directory
 
 
+def name_problem(name) -> str | None:
+    """What is wrong with a maps name (None if nothing): it travels into modelDescription.xml,
+    recording headers and C comments, so it must be one line of at most 200 characters."""
+    if not isinstance(name, str):
+        return "'name' must be a string"
+    if any(ord(ch) < 32 or ord(ch) == 127 for ch in name) or len(name) > 200:
+        return f"'name' must be one line of at most 200 characters without control characters, got {name[:60]!r}"
+    return None
+
+
 def _meta_problems(meta: dict) -> list[str]:
     problems = []
-    if not isinstance(meta.get("name"), str):
-        problems.append("'name' must be a string")
-    elif any(ord(ch) < 32 or ord(ch) == 127 for ch in meta["name"]) or len(meta["name"]) > 200:
-        # the name travels into modelDescription.xml, recording headers and C comments
-        problems.append(f"'name' must be one line of at most 200 characters without control characters, "
-                        f"got {meta['name'][:60]!r}")
+    if (problem := name_problem(meta.get("name"))) is not None:
+        problems.append(problem)
     if meta.get("force_method") not in FORCE_METHODS:
         problems.append(
             f"'force_method' must be one of {list(FORCE_METHODS)}, got {meta.get('force_method')!r}"
@@ -1756,7 +1762,31 @@ def add_cli(subparsers) -> None:
     p.set_defaults(func=_cli)
 
 
+def _output_map_dir(output, inputs) -> Path:
+    """The map directory ``output`` of a new sweep, checked before the sweep: not under a file, its
+    name a valid maps name, and none of the files a build writes or removes (maps.npz, maps.json,
+    exports, plots) one of ``inputs``."""
+    from .fileio import refuse_overwriting_inputs, require_directory
+
+    directory = require_directory(output, "-o")
+    if (problem := name_problem(directory.name)) is not None:
+        raise MapsError(f"-o {output}: the directory name is the maps name: {problem}")
+    written = [directory / n for n in (NPZ_NAME, JSON_NAME, *DERIVED_FILES)] + [directory / "plots"]
+    return refuse_overwriting_inputs(directory, inputs, written=written)
+
+
+def _output_plot_dir(plot_dir, inputs) -> Path:
+    """``--plot DIR`` checked before any work: not under a file, no input among the plots written."""
+    from .fileio import refuse_overwriting_inputs, require_directory
+
+    plot_dir = require_directory(plot_dir, "--plot")
+    return refuse_overwriting_inputs(plot_dir, inputs, written=[plot_dir / n for n in DERIVED_PLOTS])
+
+
 def _cli(args) -> int:
+    if args.plot:  # checked before any work, not after the sweep
+        source = [] if args.source is None else [Path(args.source) / n for n in (NPZ_NAME, JSON_NAME)]
+        _output_plot_dir(args.plot, [args.geometry, args.material, *source])
     if args.source is not None:
         if args.output is not None:
             raise MapsError("use either -o (build a new map) or --from (use an existing one), not both")
@@ -1775,6 +1805,7 @@ def _cli(args) -> int:
         from .geometry import load_geometry
         from .material import load_material
 
+        directory = _output_map_dir(args.output, [args.geometry, args.material])
         geometry = load_geometry(args.geometry)
         material = load_material(args.material)
         x_m = None if args.x_mm is None else np.linspace(*args.x_mm) * 1e-3
@@ -1788,7 +1819,6 @@ def _cli(args) -> int:
             executor = InlineExecutor()
         elif args.workers is not None:
             executor = cf.ProcessPoolExecutor(max_workers=args.workers)
-        directory = Path(args.output)
         try:
             maps = build_maps(geometry, material, x_m=x_m, i_A=i_A, mesh_size=args.mesh_size,
                               executor=executor, progress=not args.quiet, name=directory.name)

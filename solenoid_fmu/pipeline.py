@@ -122,6 +122,19 @@ def _maps_grid(preset: dict, geometry, recordings=()):
     return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"])
 
 
+def _output_dir(folder, out_dir) -> Path:
+    """``out_dir`` checked before any work: not under a file, neither inside the campaign folder
+    (its recordings would be read back as campaign recordings) nor holding it, and the campaign's
+    name (the maps name) one line without control characters."""
+    from .fileio import refuse_overwriting_inputs, require_directory
+    from .maps import name_problem
+
+    out = refuse_overwriting_inputs(require_directory(out_dir, "-o"), [folder])
+    if (problem := name_problem(Path(folder).resolve().name)) is not None:
+        raise PipelineError(f"{folder}: the campaign folder's name names the maps: {problem}")
+    return out
+
+
 def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
                  progress=_progress) -> dict:
     """Run the main job (module docstring) and return the summary dict (also in ``summary.json``)."""
@@ -140,7 +153,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
     cfg = PRESETS[preset]
     say = progress or (lambda msg: None)
-    folder, out = Path(folder), Path(out_dir)
+    folder, out = Path(folder), _output_dir(folder, out_dir)
     out.mkdir(parents=True, exist_ok=True)
     name = folder.resolve().name
     times: dict = {}

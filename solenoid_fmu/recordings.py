@@ -1455,6 +1455,13 @@ def add_cli(subparsers) -> None:
 
 
 def _cmd_flux(args: argparse.Namespace) -> int:
+    if args.plot is not None:  # what matplotlib writes: a PNG, never over the recording
+        from .fileio import refuse_overwriting_inputs, require_directory
+
+        if args.plot.suffix.lower() != ".png":
+            args.plot = args.plot.with_name(args.plot.name + ".png")
+        require_directory(args.plot.parent, "--plot")
+        refuse_overwriting_inputs(args.plot, [args.recording])
     rec = read_recording(args.recording)
     res = flux_linkage(rec, args.resistance_ohm)
     if args.plot is not None:

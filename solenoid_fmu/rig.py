@@ -1158,7 +1158,11 @@ def add_cli(subparsers) -> None:
 
 
 def _cli(args) -> int:
-    out = Path(args.output)
+    from .fileio import refuse_overwriting_inputs, require_directory
+
+    out = require_directory(args.output, "-o")
+    written = [out / "recordings", out / "truth.json"] + ([] if args.maps else [out / "truth" / "maps"])
+    refuse_overwriting_inputs(out, [args.geometry, args.material, args.maps, args.campaign], written=written)
     names = ",".join(EFFECT_NAMES) if args.effects.strip().lower() == "all" else args.effects
     effects = Effects.from_names(names)
     cfg = CampaignConfig()

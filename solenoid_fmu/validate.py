@@ -413,6 +413,10 @@ def _fmt(v) -> str:
 
 
 def _cli_validate(args) -> int:
+    if args.report is not None:  # checked before the simulations, not after them
+        from .fileio import refuse_overwriting_inputs, require_directory
+
+        refuse_overwriting_inputs(require_directory(args.report, "--report"), [args.fmu, *args.recordings], written=[])
     n = len(args.recordings)
     count = iter(range(1, n + 1))
 
