@@ -332,11 +332,11 @@ def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict
     # balanced: no recording counts for more than the median one. A recording whose residual is far
     # larger than the others' (one strongly heated run, say) is weighted down to the median RMS, so
     # that the evidence of the other recordings is not drowned (weighted least squares, weights <= 1)
-    rms = [float(np.sqrt(np.mean(d[1] ** 2))) for d in data if d is not None]
-    if rms and balanced:
-        q = float(np.median(rms))
-        data = [None if d is None else (d[0] * w, d[1] * w) for d in data
-                for w in [q / max(float(np.sqrt(np.mean(d[1] ** 2))) if d is not None else q, q, 1e-300)]]
+    rms = [float(np.sqrt(np.mean(d[1] ** 2))) if d is not None else 0.0 for d in data]
+    if balanced and any(d is not None for d in data):
+        q = float(np.median([r for r, d in zip(rms, data, strict=True) if d is not None]))
+        data = [None if d is None else (d[0] * (q / max(r, q, 1e-300)), d[1] * (q / max(r, q, 1e-300)))
+                for d, r in zip(data, rms, strict=True)]
     sse, ss, p = 0.0, 0.0, 0
     for train, test in _folds(cases):
         Xt = [data[k][0][m] for k, m in train if data[k] is not None]

@@ -161,8 +161,6 @@ def _force_strokes(rng, n: int, x_lo: float, x_hi: float, i_max: float, max_samp
         if energized:
             start = float(rng.uniform(0.05, 0.3))
             pre = float(rng.uniform(0.05, 0.3))
-            ref_t = (0.0,)
-            ref_v = (cur,)
         else:
             r0 = float(rng.uniform(0.05, 0.3))
             up = cur / rng.uniform(5.0, 20.0)

@@ -64,20 +64,6 @@ def test_fmus_are_written_with_the_mode_open_would_give(native):
 
 
 _SLAVE = """
-import json, math, sys, time
-import fmpy
-
-def slave(fmu, **reals):
-    md = fmpy.read_model_description(fmu)
-    s = fmpy.instantiate_fmu(fmpy.extract(fmu), md, fmi_type="CoSimulation")
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    s.setupExperiment(startTime=0.0)
-    s.enterInitializationMode()
-    for name, value in reals.items():
-        (s.setInteger if name == "drive_mode" else s.setReal)([vr[name]], [value])
-    s.exitInitializationMode()
-    return s, vr
-
 def step(s, t, h):
     try:
         s.doStep(t, h)
@@ -85,8 +71,7 @@ def step(s, t, h):
     except Exception:
         return "error"
 
-fmu, case = sys.argv[1], sys.argv[2]
-out = {}
+case = sys.argv[2]
 if case == "nan":
     s, vr = slave(fmu, drive_mode=2, i_A=1.0, x_m=1.5e-3)
     out["first"] = step(s, 0.0, 1e-3)
@@ -102,20 +87,14 @@ else:
     t0 = time.perf_counter()
     out["first"] = step(s, 0.0, 1.0)
     out["seconds"] = time.perf_counter() - t0
-print("RESULT " + json.dumps(out))
 """
 
 
 def _run_slave(fmu, case: str) -> dict:
     """Drive the FMU in a fresh process (as a host would; no state shared with other tests' FMUs)."""
-    import subprocess
-    import sys
+    from test_hostile_fmu import _run  # its script head: slave(), fmu = sys.argv[1], out = {}
 
-    proc = subprocess.run([sys.executable, "-c", _SLAVE, str(fmu), case], capture_output=True, text=True,
-                          timeout=120)
-    assert proc.returncode == 0, proc.stderr[-2000:]  # a crash (SIGSEGV) fails here
-    line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT "))
-    return json.loads(line[len("RESULT "):])
+    return _run(_SLAVE, fmu, case)[0]
 
 
 def test_native_fmu_refuses_a_non_finite_state_and_keeps_the_last_one(native):
