@@ -5,9 +5,9 @@ Usage::
     python benchmarks/bench_anyrig.py [N_LOOP] [N_PIPELINE]
 
 Part 1 (``N_LOOP`` campaigns, default 24): randomized-protocol campaigns
-(:func:`solenoid_fmu.protocols.random_campaign`, seeds 1000.., up to 6000 samples per recording)
+(:func:`solenoid_fmu.rig.protocols.random_campaign`, seeds 1000.., up to 6000 samples per recording)
 on the synthetic maps of the tests, cycling through one effect each, two pairs, none and a force
-sensor fault; :func:`solenoid_fmu.improve.improve_tables` on the true maps without effects. A
+sensor fault; :func:`solenoid_fmu.loop.improvement.improve_tables` on the true maps without effects. A
 campaign is a success when exactly the true effects are added (nothing for none / sensor fault).
 Prints the success rate, the failures by seed, and the loop time per campaign.
 
@@ -35,8 +35,8 @@ MODEL_NAME = {"hysteresis": "hysteresis", "eddy-ladder": "eddy", "heating": "hea
 
 
 def _loop(tables, folder) -> tuple[list, float]:
-    from solenoid_fmu.improve import improve_tables
-    from solenoid_fmu.recordings import read_recording
+    from solenoid_fmu.loop.improvement import improve_tables
+    from solenoid_fmu.measure.recordings import read_recording
 
     recs = [read_recording(p) for p in sorted((folder / "recordings").glob("*.csv"))]
     t0 = time.perf_counter()
@@ -48,9 +48,9 @@ def main(n_loop: int = 24, n_pipeline: int = 2) -> dict:
     import mapsfixture
     from conftest import small_campaign
 
-    from solenoid_fmu.model import load_tables
-    from solenoid_fmu.protocols import random_campaign
-    from solenoid_fmu.rig import Effects, run_campaign
+    from solenoid_fmu.realtime.model import load_tables
+    from solenoid_fmu.rig.core import Effects, run_campaign
+    from solenoid_fmu.rig.protocols import random_campaign
 
     out: dict = {}
     with tempfile.TemporaryDirectory() as tmp:

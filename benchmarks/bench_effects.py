@@ -27,7 +27,7 @@ EFFECTS = {
 
 
 def _time(tab, n=20000, blocks=5) -> float:
-    from solenoid_fmu.model import SolenoidModel
+    from solenoid_fmu.realtime.model import SolenoidModel
 
     m = SolenoidModel(tab, {"drive_mode": "voltage"})
     m.initialize(0.0, 1.5e-3)
@@ -41,8 +41,8 @@ def _time(tab, n=20000, blocks=5) -> float:
 
 
 def main() -> None:
-    from solenoid_fmu.improve import with_effects
-    from solenoid_fmu.model import load_tables
+    from solenoid_fmu.loop.improvement import with_effects
+    from solenoid_fmu.realtime.model import load_tables
 
     base = load_tables(ROOT / "maps" / "ps45-literature")
     t_base = _time(base)

@@ -9,9 +9,9 @@ Goal (issue 2): under 0.3 s cold and 0.1 s warm on a 2-core machine.
 import statistics
 import time
 
-from solenoid_fmu.fem import Solver, _pardiso
-from solenoid_fmu.geometry import load_geometry
-from solenoid_fmu.material import load_material
+from solenoid_fmu.field.fem import Solver, _pardiso
+from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.material import load_material
 
 
 def median_time(fn, repeat=5):

@@ -79,8 +79,8 @@ def _block(fmu, n: int, t0: float, h: float, cycle=None) -> float:
 
 
 def main(argv: list[str]) -> int:
-    from solenoid_fmu import model as M
-    from solenoid_fmu.fmu import build_fmu
+    from solenoid_fmu.fmu.export import build_fmu
+    from solenoid_fmu.realtime import model as M
 
     h = 1e-4
     n_block, n_rep = 2000, 15

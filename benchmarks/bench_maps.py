@@ -3,7 +3,7 @@
 Runs in one process tree:
 
 1. a serial baseline on a subset of the default grid (a few positions, all currents) in this process
-   (:class:`solenoid_fmu.maps.InlineExecutor`);
+   (:class:`solenoid_fmu.maps.core.InlineExecutor`);
 2. the whole default map (15 positions x 26 currents, mesh size 1.0) on the default executor
    (a process pool with one worker per core);
 
@@ -24,8 +24,9 @@ import time
 
 import numpy as np
 
-from solenoid_fmu.geometry import load_geometry
-from solenoid_fmu.maps import (
+from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.material import load_material
+from solenoid_fmu.maps.core import (
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
     DEFAULT_NX,
@@ -36,7 +37,6 @@ from solenoid_fmu.maps import (
     round_trip_error,
     save_maps,
 )
-from solenoid_fmu.material import load_material
 
 GOAL_S = 180.0
 

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from solenoid_fmu.fmu import build_fmu
-from solenoid_fmu.model import DRIVE_CURRENT, load_tables
+from solenoid_fmu.fmu.export import build_fmu
+from solenoid_fmu.realtime.model import DRIVE_CURRENT, load_tables
 
 RATE_A_PER_S = 10.0
 HOLD_S = 0.05

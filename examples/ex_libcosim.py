@@ -57,7 +57,7 @@ def run_libcosim(fmu_path, drive_mode: int, u: float, x_m: float, stop_s: float)
 
 def run(maps_dir="maps/ps45-literature", out_dir="build/ex_libcosim") -> dict:
     """Export both FMUs and run them in libcosim: {(backend, drive_mode): result of run_libcosim}."""
-    from solenoid_fmu.fmu import build_fmu
+    from solenoid_fmu.fmu.export import build_fmu
 
     out = Path(out_dir)
     fmus = {backend: build_fmu(maps_dir, out / f"solenoid-{backend}.fmu", backend=backend)

@@ -17,16 +17,16 @@ from .errors import SolenoidError
 
 #: Modules that contribute subcommands, in the order of the data flow.
 COMMAND_MODULES = (
-    "fem",
-    "maps",
-    "recordings",
-    "rig",
-    "identify",
-    "eddy",
-    "fmu",
-    "validate",
-    "diagnose",
-    "improve",
+    "field.fem",
+    "maps.core",
+    "measure.recordings",
+    "rig.core",
+    "identification.identify",
+    "maps.eddy",
+    "fmu.export",
+    "loop.validate",
+    "loop.diagnose",
+    "loop.improvement",
     "pipeline",
 )
 

@@ -53,7 +53,7 @@ def require_directory(path, what: str = "output") -> Path:
     return path
 
 
-def _umask() -> int:
+def umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
@@ -75,7 +75,7 @@ def temp_beside(path: str | Path, suffix: str = ".tmp") -> Iterator[Path]:
     tmp = Path(tmp)
     try:
         yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())
+        os.chmod(tmp, 0o666 & ~umask())
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

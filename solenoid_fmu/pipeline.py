@@ -140,14 +140,13 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     """Run the main job (module docstring) and return the summary dict (also in ``summary.json``)."""
     import concurrent.futures as cf
 
-    from . import identify as _identify
-    from .eddy import fit_eddy
+    from .field import load_geometry
     from .fileio import atomic_write_text
     from .fmu import build_fmu
-    from .geometry import load_geometry
-    from .improve import improve
-    from .maps import InlineExecutor, build_maps, load_maps, save_maps
-    from .recordings import read_recording
+    from .identification import identify as _identify
+    from .loop import improve
+    from .maps import InlineExecutor, build_maps, fit_eddy, load_maps, save_maps
+    from .measure import read_recording
 
     if preset not in PRESETS:
         raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
@@ -246,8 +245,8 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         # Correct them with the fitted heating model and identify again.
         say("== coil heating was " + ("added" if heat else "fitted, B(H) error left") +
             ": identify B(H) again from heating-corrected flux")
-        from .improve import heating_corrected, tables_from_fmu
-        from .recordings import write_recording
+        from .loop import heating_corrected, tables_from_fmu
+        from .measure import write_recording
 
         heating = tables_from_fmu(res["improved_fmu"])[0].meta["effects"]["heating"] if heat else tried_heat
         corr_dir = out / "heating-corrected"
@@ -283,9 +282,9 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     summary["report"] = str(html_path)
     times["report"] = time.perf_counter() - t0
     times["total"] = time.perf_counter() - t_all
-    from .improve import _jsonable
+    from .loop import jsonable
 
-    atomic_write_text(out / "summary.json", json.dumps(_jsonable(summary), indent=1) + "\n")
+    atomic_write_text(out / "summary.json", json.dumps(jsonable(summary), indent=1) + "\n")
     return summary
 
 
@@ -363,9 +362,9 @@ def add_cli(sub) -> None:
 def _cli(args) -> int:
     s = run_pipeline(args.campaign, args.output, geometry=args.geometry, preset=args.preset, workers=args.workers)
     if args.json:
-        from .improve import _jsonable
+        from .loop import jsonable
 
-        print(json.dumps(_jsonable(s)))
+        print(json.dumps(jsonable(s)))
         return 0
     print(f"effects added: {', '.join(s['effects_added']) or 'none'}")
     for effect, what in s["not_identifiable"].items():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import ellipe, ellipk
 
-from solenoid_fmu.geometry import geometry_from_dict
+from solenoid_fmu.field.geometry import geometry_from_dict
 
 MU_0 = 4e-7 * np.pi
 

@@ -1,8 +1,8 @@
 """Campaigns from rigs other than ours (issue 12): randomized protocols, energized starts, robust metrics.
 
-The loop test draws campaigns with :func:`solenoid_fmu.protocols.random_campaign` (seeded: a
+The loop test draws campaigns with :func:`solenoid_fmu.rig.protocols.random_campaign` (seeded: a
 failing seed reproduces with ``random_campaign(tables, dir, effects, seed=SEED, max_samples=4000)``)
-and runs :func:`solenoid_fmu.improve.improve_tables` on the true maps without the effects.
+and runs :func:`solenoid_fmu.loop.improvement.improve_tables` on the true maps without the effects.
 """
 
 import dataclasses
@@ -14,13 +14,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from solenoid_fmu.diagnose import ResidualCase, conditioned_position, diagnose, residual_case
-from solenoid_fmu.fmu import simulate_model
-from solenoid_fmu.improve import _cases, _error, improve_tables, split_recordings
-from solenoid_fmu.protocols import random_campaign
-from solenoid_fmu.recordings import commutation_curve, flux_linkage, make_recording, read_recording
-from solenoid_fmu.rig import Effects, Excitation, TruthModel, measure
-from solenoid_fmu.validate import full_scales, validate_cases
+from solenoid_fmu.fmu.export import simulate_model
+from solenoid_fmu.loop.diagnose import ResidualCase, conditioned_position, diagnose, residual_case
+from solenoid_fmu.loop.improvement import _cases, _error, improve_tables, split_recordings
+from solenoid_fmu.loop.validate import full_scales, validate_cases
+from solenoid_fmu.measure.recordings import commutation_curve, flux_linkage, make_recording, read_recording
+from solenoid_fmu.rig.core import Effects, Excitation, TruthModel, measure
+from solenoid_fmu.rig.protocols import random_campaign
 
 #: What the loop must add for each truth effect (rig name -> model effect).
 EXPECTED = {"hysteresis": "hysteresis", "eddy-ladder": "eddy", "heating": "heating", "friction": "friction"}
@@ -105,7 +105,7 @@ def test_randomized_protocols_differ_from_our_rig_and_reproduce(rig_maps, tmp_pa
 
 
 def test_protocol_draws_cover_the_variations_the_issue_lists():
-    from solenoid_fmu.protocols import random_protocol
+    from solenoid_fmu.rig.protocols import random_protocol
 
     draws = [random_protocol(np.random.default_rng(s), x_range_m=(0.2e-3, 3.5e-3), max_current_A=2.0,
                              resistance_ohm=12.0, max_samples=20000) for s in range(30)]
@@ -182,7 +182,7 @@ def test_three_cycle_2kHz_triangle_with_short_half_cycles_splits_into_branches()
 @given(st.sampled_from(["triangle", "trapezoid", "sine"]), st.integers(1, 5), st.floats(0.3e-3, 0.5),
        st.sampled_from([500.0, 2000.0, 20000.0]), st.floats(0.0, 0.2), st.floats(0.0, 0.05))
 def test_flux_linkage_never_crashes_on_cyclic_currents(shape, cycles, half_s, fs, rest_s, noise_A):
-    from solenoid_fmu.protocols import _cyclic
+    from solenoid_fmu.rig.protocols import _cyclic
 
     t_k, v_k = _cyclic(shape, 1.0, half_s, cycles, rest_s, 0.0, rest_s, 0.3 * half_s)
     n = min(int(t_k[-1] * fs) + 1, 50000)
@@ -200,7 +200,7 @@ def test_flux_linkage_never_crashes_on_cyclic_currents(shape, cycles, half_s, fs
 @settings(max_examples=3, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
 @given(st.integers(0, 10**6))
 def test_every_stage_takes_randomized_recordings(rig_maps, tmp_path_factory, seed):
-    from solenoid_fmu.eddy import fit_eddy
+    from solenoid_fmu.maps.eddy import fit_eddy
 
     tables, maps_dir, _, _ = rig_maps
     folder = tmp_path_factory.mktemp("stages")
@@ -210,7 +210,7 @@ def test_every_stage_takes_randomized_recordings(rig_maps, tmp_path_factory, see
         if rec.voltage_V is not None:
             fr = flux_linkage(rec)
             assert np.all(np.isfinite(fr.psi_Wb)), rec.path
-    from solenoid_fmu.identify import _group_flux
+    from solenoid_fmu.identification.identify import _group_flux
 
     main, _ = _group_flux([r for r in recs if r.kind == "flux"])
     cc = commutation_curve(main)
@@ -224,7 +224,7 @@ def test_every_stage_takes_randomized_recordings(rig_maps, tmp_path_factory, see
     assert all(0.0 <= m["nrmse_fs"] <= 1.0 for r in v["recordings"] for m in r["signals"].values())
     d = diagnose(cases)
     assert all(math.isfinite(c.score) and c.score <= 1.0 for c in d.ranking)
-    from solenoid_fmu.maps import load_maps
+    from solenoid_fmu.maps.core import load_maps
 
     fit = fit_eddy([r for r in recs if r.kind == "eddy"], load_maps(maps_dir))
     assert math.isfinite(fit.G_eddy_S)
@@ -304,8 +304,8 @@ def test_truth_json_records_the_drawn_protocol(rig_maps):
 
 def test_identify_and_commutation_refuse_flux_whose_integration_constant_is_unknown(rig_maps, tmp_path):
     from solenoid_fmu.errors import RecordingError
-    from solenoid_fmu.identify import identify_from_recordings
-    from solenoid_fmu.recordings import write_recording
+    from solenoid_fmu.identification.identify import identify_from_recordings
+    from solenoid_fmu.measure.recordings import write_recording
 
     rec, _ = _energized_stroke(rig_maps[0], rest_at_end=True)
     flux = make_recording("flux", "PS45", rec.time_s, rec.current_A, voltage_V=rec.voltage_V, position_m=1.5e-3,
@@ -327,7 +327,7 @@ def _first_half(rec):
 
 
 def test_not_identifiable_names_what_to_add(rig_campaign, rig_maps):
-    from solenoid_fmu.improve import not_identifiable
+    from solenoid_fmu.loop.improvement import not_identifiable
 
     recs = [read_recording(p) for p in rig_campaign("friction")]
     assert not_identifiable(recs) == {}  # our rig's campaign has what every effect needs
@@ -345,9 +345,9 @@ def test_not_identifiable_names_what_to_add(rig_campaign, rig_maps):
 
 
 def test_eddy_fit_leaves_out_recordings_without_absolute_flux(rig_maps, rig_campaign):
-    from solenoid_fmu.eddy import fit_eddy
     from solenoid_fmu.errors import SolenoidError
-    from solenoid_fmu.maps import load_maps
+    from solenoid_fmu.maps.core import load_maps
+    from solenoid_fmu.maps.eddy import fit_eddy
 
     maps = load_maps(rig_maps[1])
     eddy = [read_recording(p) for p in rig_campaign("") if "eddy" in p]
@@ -367,7 +367,7 @@ def test_eddy_fit_leaves_out_recordings_without_absolute_flux(rig_maps, rig_camp
 
 def test_force_stroke_curve_refuses_a_one_way_stroke_by_name(rig_campaign):
     from solenoid_fmu.errors import RecordingError
-    from solenoid_fmu.identify import force_stroke_curve
+    from solenoid_fmu.identification.identify import force_stroke_curve
 
     rec = next(read_recording(p) for p in rig_campaign("") if "force_stroke_1p50" in p)
     both = force_stroke_curve(rec)

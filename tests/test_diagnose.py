@@ -7,8 +7,8 @@ hysteresis, a two-section eddy ladder, a thermal model with its own time constan
 import numpy as np
 import pytest
 
-from solenoid_fmu.diagnose import EFFECTS, ResidualCase, diagnose, score_effect
-from solenoid_fmu.hysteresis import PreisachHysteresis
+from solenoid_fmu.loop.diagnose import EFFECTS, ResidualCase, diagnose, score_effect
+from solenoid_fmu.realtime.hysteresis import PreisachHysteresis
 
 RNG = np.random.default_rng(7)
 R_OHM = 12.0

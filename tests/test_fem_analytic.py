@@ -12,8 +12,8 @@ from analytic import (
     two_coil_geometry,
 )
 
-from solenoid_fmu.fem import Solver
-from solenoid_fmu.material import linear_material, load_material
+from solenoid_fmu.field.fem import Solver
+from solenoid_fmu.field.material import linear_material, load_material
 
 
 @pytest.fixture(scope="module")

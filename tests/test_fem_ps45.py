@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.cli import main
-from solenoid_fmu.fem import Solver, sweep_currents
-from solenoid_fmu.geometry import load_geometry
-from solenoid_fmu.material import load_material
+from solenoid_fmu.field.fem import Solver, sweep_currents
+from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.material import load_material
 
 
 @pytest.fixture(scope="module")
@@ -118,8 +118,8 @@ def test_cli_bad_geometry_file_gives_clear_error(tmp_path, capsys):
 
 
 def test_non_convergence_raises_with_residual_history(solver, monkeypatch):
-    from solenoid_fmu import fem
     from solenoid_fmu.errors import SolverError
+    from solenoid_fmu.field import fem
 
     monkeypatch.setattr(fem, "NEWTON_MAXIT", 2)
     with pytest.raises(SolverError, match=r"did not converge at i = 2 A, x = 0.7 mm after 2 iterations; "

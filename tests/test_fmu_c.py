@@ -18,9 +18,10 @@ from fmpy.fmi2 import FMU2Model
 from lxml import etree
 from test_fmu import OUTS, X_M, Instance, _measured, model_run, scenario
 
-from solenoid_fmu import cli, fmu_c
-from solenoid_fmu import fmu as F
-from solenoid_fmu import model as M
+from solenoid_fmu import cli
+from solenoid_fmu.fmu import export as F
+from solenoid_fmu.fmu import native as fmu_c
+from solenoid_fmu.realtime import model as M
 
 pytestmark = pytest.mark.fmu
 
@@ -238,7 +239,7 @@ def test_non_positive_resistance_is_refused(md, unzipped):
 
 
 def test_simulate_recording_runs_the_native_fmu(fmu_path, tab, tmp_path):
-    from solenoid_fmu.recordings import read_recording, write_recording
+    from solenoid_fmu.measure.recordings import read_recording, write_recording
 
     rec = _measured(tab, "ramp", "current")
     src = write_recording(tmp_path / "measured.csv", rec)

@@ -1,6 +1,6 @@
 """The native (generated C) FMU with the effect sub-models (issue 7) against model.py.
 
-Co-simulation must agree with :class:`solenoid_fmu.model.SolenoidModel` to 1e-9 relative for each
+Co-simulation must agree with :class:`solenoid_fmu.realtime.model.SolenoidModel` to 1e-9 relative for each
 effect alone and all four together, in both drive modes (current mode with and without G_eddy);
 model exchange is checked pointwise (derivatives and outputs, 1e-9) and as a CVode run against
 model.py with fine sub-steps (the hysteresis and friction states are updated at step events there,
@@ -23,9 +23,9 @@ from fmpy.fmi1 import FMICallException
 from test_fmu import Instance, _measured
 from test_fmu_c import HOST_C, MeInstance, _rel_err, _run_host
 
-from solenoid_fmu import fmu as F
-from solenoid_fmu import fmu_c
-from solenoid_fmu import model as M
+from solenoid_fmu.fmu import export as F
+from solenoid_fmu.fmu import native as fmu_c
+from solenoid_fmu.realtime import model as M
 
 pytestmark = pytest.mark.fmu
 

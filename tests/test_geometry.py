@@ -6,7 +6,7 @@ import tomllib
 import pytest
 
 from solenoid_fmu.errors import GeometryError
-from solenoid_fmu.geometry import default_geometry_path, geometry_from_dict, load_geometry
+from solenoid_fmu.field.geometry import default_geometry_path, geometry_from_dict, load_geometry
 
 
 @pytest.fixture

@@ -10,9 +10,9 @@ import mapsfixture
 import numpy as np
 import pytest
 
-from solenoid_fmu.fmu import build_fmu, simulate_recording
-from solenoid_fmu.model import MAX_SUBSTEPS, ModelInputError, SolenoidModel, load_tables
-from solenoid_fmu.recordings import make_recording, write_recording
+from solenoid_fmu.fmu.export import build_fmu, simulate_recording
+from solenoid_fmu.measure.recordings import make_recording, write_recording
+from solenoid_fmu.realtime.model import MAX_SUBSTEPS, ModelInputError, SolenoidModel, load_tables
 
 HOSTILE = 'x */ int evil = 1; /* "\\ #include <stdlib.h> //'
 
@@ -145,7 +145,7 @@ def test_simulate_refuses_to_overwrite_its_input(hostile_maps, tmp_path, capsys)
 
 # -- inputs that gave a wrong answer without a word ---------------------------------------------------
 def _geometry_text(**replace):
-    from solenoid_fmu.geometry import default_geometry_path
+    from solenoid_fmu.field.geometry import default_geometry_path
 
     text = default_geometry_path().read_text()
     for old, new in replace.items():
@@ -161,7 +161,7 @@ def _geometry_text(**replace):
 ])
 def test_geometry_file_refuses_unknown_keys_wrong_types_and_no_armature(tmp_path, old, new, message):
     from solenoid_fmu.errors import GeometryError
-    from solenoid_fmu.geometry import default_geometry_path, load_geometry
+    from solenoid_fmu.field.geometry import default_geometry_path, load_geometry
 
     text = default_geometry_path().read_text()
     assert old in text
@@ -173,7 +173,7 @@ def test_geometry_file_refuses_unknown_keys_wrong_types_and_no_armature(tmp_path
 
 def test_recording_with_an_acquisition_gap_is_refused_naming_the_line(tmp_path):
     from solenoid_fmu.errors import RecordingError
-    from solenoid_fmu.recordings import read_recording
+    from solenoid_fmu.measure.recordings import read_recording
 
     t = np.arange(100) * 1e-3
     t[50:] += 1e5  # a 1e5 s gap (it would have made simulate run for hours)
@@ -194,7 +194,7 @@ def test_grids_and_budgets_are_bounded_with_a_message(capsys):
 
 
 def test_flux_on_a_moving_armature_says_the_width_is_motion(tmp_path):
-    from solenoid_fmu.recordings import flux_linkage
+    from solenoid_fmu.measure.recordings import flux_linkage
 
     t = np.arange(2000) * 1e-3
     i = np.interp(t, [0, 0.2, 1.0, 1.8, 2.0], [0, 0, 1.0, 0, 0])
@@ -226,7 +226,7 @@ def _npz_with_member(src_dir, dst_dir, name, header_array):
 
 def test_npz_members_are_checked_before_they_are_loaded(tmp_path):
     from solenoid_fmu.errors import MapsError
-    from solenoid_fmu.maps import load_maps
+    from solenoid_fmu.maps.core import load_maps
 
     src = mapsfixture.write_maps(tmp_path / "src")
     huge = np.lib.stride_tricks.as_strided(np.zeros(1), shape=(100_000, 10_000), strides=(0, 0))  # 8 GB declared
@@ -240,7 +240,7 @@ def test_npz_members_are_checked_before_they_are_loaded(tmp_path):
 
 
 def test_rebuilding_a_map_directory_removes_the_earlier_exports(tmp_path):
-    from solenoid_fmu.maps import DERIVED_PLOTS, remove_stale_exports
+    from solenoid_fmu.maps.core import DERIVED_PLOTS, remove_stale_exports
 
     d = mapsfixture.write_maps(tmp_path / "m")
     (d / "plots").mkdir()

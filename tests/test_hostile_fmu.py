@@ -14,11 +14,11 @@ import mapsfixture
 import numpy as np
 import pytest
 
-from solenoid_fmu import fmu_c
 from solenoid_fmu.errors import FmuBuildError, MapsError
-from solenoid_fmu.fmu import build_fmu
-from solenoid_fmu.model import load_tables
-from solenoid_fmu.recordings import make_recording, write_recording
+from solenoid_fmu.fmu import native as fmu_c
+from solenoid_fmu.fmu.export import build_fmu
+from solenoid_fmu.measure.recordings import make_recording, write_recording
+from solenoid_fmu.realtime.model import load_tables
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -110,7 +110,7 @@ def test_a_non_finite_table_value_never_reaches_generated_c(maps_dir, tmp_path):
 
 # -- fmpy's one logger slot --------------------------------------------------------------------------
 _LOGGER = """
-from solenoid_fmu.fmu import simulate_recording
+from solenoid_fmu.fmu.export import simulate_recording
 simulate_recording(fmu, sys.argv[2])  # its logger callback must outlive it
 gc.collect()
 s, vr = slave(fmu, drive_mode=2, G_eddy_S=1e308, i_A=1.0, x_m=1.5e-3)
@@ -133,7 +133,7 @@ def test_fmi2_callbacks_route_each_instance_to_its_own_log(native):
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from solenoid_fmu.fmu import _LOG_SINKS, fmi2_callbacks, release_fmi2_callbacks
+    from solenoid_fmu.fmu.export import _LOG_SINKS, fmi2_callbacks, release_fmi2_callbacks
 
     md = read_model_description(str(native))
     vr = {v.name: v.valueReference for v in md.modelVariables}

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.cli import main
+from solenoid_fmu.field.geometry import default_geometry_path
 from solenoid_fmu.fileio import OutputError, refuse_overwriting_inputs, require_directory
-from solenoid_fmu.geometry import default_geometry_path
-from solenoid_fmu.recordings import make_recording, write_recording
+from solenoid_fmu.measure.recordings import make_recording, write_recording
 
 
 @pytest.fixture(scope="module")
@@ -128,9 +128,9 @@ def test_a_maps_name_with_control_characters_is_refused_before_the_sweep(tmp_pat
 
 
 def test_ctrl_c_inside_a_sweep_worker_is_one_line(monkeypatch, tmp_path, capsys):
-    from solenoid_fmu import maps
-    from solenoid_fmu.geometry import load_geometry
-    from solenoid_fmu.material import load_material
+    from solenoid_fmu.field.geometry import load_geometry
+    from solenoid_fmu.field.material import load_material
+    from solenoid_fmu.maps import core as maps
 
     calls = []
 

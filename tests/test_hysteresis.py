@@ -15,8 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from solenoid_fmu import hysteresis as hy
-from solenoid_fmu.hysteresis import (
+from solenoid_fmu.realtime import hysteresis as hy
+from solenoid_fmu.realtime.hysteresis import (
     HysteresisError,
     PlayHysteresis,
     PlayLoopFit,

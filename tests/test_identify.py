@@ -12,8 +12,9 @@ import pytest
 
 from solenoid_fmu import cli
 from solenoid_fmu.errors import RecordingError, SolenoidError
-from solenoid_fmu.geometry import load_geometry
-from solenoid_fmu.identify import (
+from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.material import MU_0, bh_curve_from_table, load_material, read_bh_csv
+from solenoid_fmu.identification.identify import (
     NLOPT_CODES,
     SusceptibilityModel,
     _FluxModel,
@@ -26,8 +27,7 @@ from solenoid_fmu.identify import (
     nlopt_code_name,
     scaled_curve,
 )
-from solenoid_fmu.maps import force_at, load_maps, psi_at
-from solenoid_fmu.material import MU_0, bh_curve_from_table, load_material, read_bh_csv
+from solenoid_fmu.maps.core import force_at, load_maps, psi_at
 
 DEMO = "fitting/ps45-demo"
 X_ID = 1.5e-3
@@ -204,8 +204,8 @@ def test_demo_campaign_with_hysteresis_and_noise(tmp_path):
 def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
     """Flux recordings at two strokes: the stroke with more recordings is identified, the other
     one is compared in fig. 16 and the JSON (here copies of demo recordings relabelled 2.0 mm)."""
-    from solenoid_fmu.identify import _group_flux, write_report
-    from solenoid_fmu.recordings import read_recording
+    from solenoid_fmu.identification.identify import _group_flux, write_report
+    from solenoid_fmu.measure.recordings import read_recording
 
     src = sorted(glob.glob(f"{DEMO}/recordings/0[1-4]_flux_*.csv"))
     moved = []
@@ -236,7 +236,7 @@ def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
 
 def test_curves_within_bounds_pass_the_material_checks(tmp_path, fitted):
     """Any parameter vector within the bounds gives a table that load_material accepts."""
-    from solenoid_fmu.material import write_bh_csv
+    from solenoid_fmu.field.material import write_bh_csv
 
     lit, model, theta = fitted
     lo, hi = model.bounds()

@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from solenoid_fmu import maps as M
 from solenoid_fmu.cli import main as cli_main
 from solenoid_fmu.errors import MapsError
+from solenoid_fmu.maps import core as M
 
 # ---------------------------------------------------------------------------------------------
 # The analytic stand-in
@@ -605,8 +605,8 @@ def fem_maps(tmp_path_factory, worker_id):
     with a margin, for speed. Built once per test run: pytest-xdist workers share one copy through
     a file lock in the run's temp root.
     """
-    from solenoid_fmu.geometry import load_geometry
-    from solenoid_fmu.material import load_material
+    from solenoid_fmu.field.geometry import load_geometry
+    from solenoid_fmu.field.material import load_material
 
     root = tmp_path_factory.getbasetemp()
     if worker_id != "master":
@@ -627,9 +627,9 @@ def fem_maps(tmp_path_factory, worker_id):
 
 @pytest.mark.slow
 def test_fem_map_interpolation_matches_direct_solves(fem_maps):
-    from solenoid_fmu.fem import solve_point
-    from solenoid_fmu.geometry import load_geometry
-    from solenoid_fmu.material import load_material
+    from solenoid_fmu.field.fem import solve_point
+    from solenoid_fmu.field.geometry import load_geometry
+    from solenoid_fmu.field.material import load_material
 
     geometry, material = load_geometry(), load_material()
     rng = np.random.default_rng(20240611)
@@ -664,8 +664,8 @@ def test_fem_map_energy_cycle_balances(fem_maps, cycle):
 
 @pytest.mark.slow
 def test_fem_map_round_trip_and_provenance(fem_maps):
-    from solenoid_fmu.geometry import load_geometry
-    from solenoid_fmu.material import load_material
+    from solenoid_fmu.field.geometry import load_geometry
+    from solenoid_fmu.field.material import load_material
 
     assert M.round_trip_error(fem_maps, points_per_interval=4) < 1e-3
     prov = fem_maps.metadata["provenance"]
@@ -673,7 +673,7 @@ def test_fem_map_round_trip_and_provenance(fem_maps):
     assert prov["geometry"]["path"] == "solenoid_fmu/data/ps45.toml"  # portable: relative to the checkout
     assert prov["material"]["sha256"] == load_material().sha256
     assert prov["mesh_size"] == FEM_MESH
-    assert prov["solver"]["sweep"] == "solenoid_fmu.fem.sweep_currents"
+    assert prov["solver"]["sweep"] == "solenoid_fmu.field.fem.sweep_currents"
     # Psi at the working-range end points rises with current and falls with the gap
     assert np.all(np.diff(fem_maps.psi_ix_Wb, axis=0) > 0)
     assert np.all(fem_maps.psi_ix_Wb[-1, :-1] > fem_maps.psi_ix_Wb[-1, 1:])
@@ -698,8 +698,8 @@ def test_shipped_ps45_map_round_trip_between_positions():
     PS45 geometry and literature steel."""
     from pathlib import Path
 
-    from solenoid_fmu.geometry import load_geometry
-    from solenoid_fmu.material import load_material
+    from solenoid_fmu.field.geometry import load_geometry
+    from solenoid_fmu.field.material import load_material
 
     shipped = M.load_maps(Path(__file__).resolve().parents[1] / "maps" / "ps45-literature")
     mid = 0.5 * (shipped.x_m[1:] + shipped.x_m[:-1])

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.errors import MaterialError
-from solenoid_fmu.material import (
+from solenoid_fmu.field.material import (
     MU_0,
     MU_R_MAX,
     bh_curve_from_table,

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from solenoid_fmu.geometry import load_geometry
-from solenoid_fmu.mesh import build_mesh
+from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.mesh import build_mesh
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from solenoid_fmu import model as M
+from solenoid_fmu.realtime import model as M
 
 X_M = 1.0e-3  # working gap of the fixed-stroke cases [m]
 R_OHM = mf.R_OHM

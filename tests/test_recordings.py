@@ -1,4 +1,4 @@
-"""Tests of solenoid_fmu.recordings: the CSV format v1 (strict reader, exact writer) and eq. 4.
+"""Tests of solenoid_fmu.measure.recordings: the CSV format v1 (strict reader, exact writer) and eq. 4.
 
 Every malformed file is written here, in tmp_path, with the line the problem is on known by
 construction. The flux tests use synthetic recordings made from a known Psi(i) curve.
@@ -17,10 +17,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from solenoid_fmu import recordings as R
 from solenoid_fmu.cli import main
 from solenoid_fmu.errors import RecordingError
-from solenoid_fmu.recordings import (
+from solenoid_fmu.measure import recordings as R
+from solenoid_fmu.measure.recordings import (
     KINDS,
     Recording,
     commutation_curve,

@@ -8,7 +8,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from solenoid_fmu.errors import SolenoidError
-from solenoid_fmu.report import (
+from solenoid_fmu.report.html import (
     ReportError,
     errors_table,
     figure_to_data_uri,

@@ -1,4 +1,4 @@
-"""Tests of the virtual test rig (solenoid_fmu.rig) on the synthetic maps of tests/mapsfixture.py.
+"""Tests of the virtual test rig (solenoid_fmu.rig.core) on the synthetic maps of tests/mapsfixture.py.
 
 The truth's Psi(i) is known analytically (mapsfixture.psi_analytic), independent of the rig, so
 the flux test compares the recordings with an answer the rig did not produce.
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.cli import main
-from solenoid_fmu.model import load_tables
-from solenoid_fmu.recordings import flux_linkage, read_recording
-from solenoid_fmu.rig import (
+from solenoid_fmu.measure.recordings import flux_linkage, read_recording
+from solenoid_fmu.realtime.model import load_tables
+from solenoid_fmu.rig.core import (
     CampaignConfig,
     DataAcquisition,
     EddyLadder,
@@ -257,8 +257,8 @@ def test_shipped_demo_campaign_is_consistent():
 
 def test_truth_without_effects_agrees_with_the_real_time_model(tables):
     # two independent integrations of paper eqs. 1-3: the rig's ROS2 on its own state vector and
-    # solenoid_fmu.model.SolenoidModel (voltage mode, no eddy term)
-    from solenoid_fmu.model import SolenoidModel
+    # solenoid_fmu.realtime.model.SolenoidModel (voltage mode, no eddy term)
+    from solenoid_fmu.realtime.model import SolenoidModel
 
     cfg = CampaignConfig(tests=("voltage_step",), step_hold_s=0.4, step_sample_rate_Hz=2000.0)
     exc, res, _ = _record(tables, Effects(), cfg, index=0)

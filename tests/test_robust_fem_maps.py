@@ -11,14 +11,21 @@ import mapsfixture
 import numpy as np
 import pytest
 
-from solenoid_fmu import fem
-from solenoid_fmu.eddy import fit_eddy
 from solenoid_fmu.errors import MapsError, SolverError
-from solenoid_fmu.geometry import load_geometry
-from solenoid_fmu.maps import FLUX_EXTRAPOLATION_LIMIT, InlineExecutor, build_maps, default_currents, i_f_at, load_maps
-from solenoid_fmu.material import load_material
+from solenoid_fmu.field import fem
+from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.material import load_material
+from solenoid_fmu.maps.core import (
+    FLUX_EXTRAPOLATION_LIMIT,
+    InlineExecutor,
+    build_maps,
+    default_currents,
+    i_f_at,
+    load_maps,
+)
+from solenoid_fmu.maps.eddy import fit_eddy
+from solenoid_fmu.measure.recordings import make_recording
 from solenoid_fmu.pipeline import CAMPAIGN_CURRENT_MARGIN, PRESETS, _maps_grid, maps_current_grid
-from solenoid_fmu.recordings import make_recording
 
 X_M, I_A, I_PREV_A = 2.787e-3, 0.632, 0.6
 
@@ -40,7 +47,7 @@ def test_stall_below_the_stall_tolerance_is_accepted_with_a_note(ps45, monkeypat
     """An unreachable tolerance makes Newton stall at rounding level: accepted, logged, same result."""
     _, _, solver, ref, _ = ps45
     monkeypatch.setattr(fem, "NEWTON_RTOL", 1e-30)
-    with caplog.at_level(logging.INFO, logger="solenoid_fmu.fem"):
+    with caplog.at_level(logging.INFO, logger="solenoid_fmu.field.fem"):
         sol = solver.solve(I_A, X_M)
     assert "accepted as converged" in sol.note
     assert sol.residual_history[-1] < fem.NEWTON_STALL_RTOL
@@ -66,7 +73,7 @@ def test_failed_point_is_recovered_by_load_stepping_from_the_neighbour(ps45, mon
     monkeypatch.setattr(fem, "NEWTON_MAXIT", 3)
     with pytest.raises(fem._NewtonFailure):  # the plain solve cannot make it in 3 iterations
         solver._solve(I_A, X_M, prev.u)
-    with caplog.at_level(logging.INFO, logger="solenoid_fmu.fem"):
+    with caplog.at_level(logging.INFO, logger="solenoid_fmu.field.fem"):
         sol = solver.solve(I_A, X_M, u0=prev.u, i0_A=I_PREV_A)
     assert sol.note.startswith("recovered by load stepping in current (4 steps from the neighbour's solution at 0.6 A)")
     assert any("recovered by load stepping" in r.getMessage() for r in caplog.records)
@@ -129,7 +136,7 @@ def test_flux_just_past_the_last_node_extrapolates_with_one_warning(smaps, caplo
     top = smaps.psi_Wb[-1]
     x = smaps.x_m[0]
     psi = np.array([0.5 * top, top, top * (1 + 2e-4), top * (1 + 1e-3)])
-    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps"):
+    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps.core"):
         i_f = i_f_at(smaps, psi, x, where="run7.csv")
     warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warnings) == 1  # one per lookup batch, not one per sample
@@ -164,7 +171,7 @@ def _eddy_recording_past_the_map(top_Wb, x_m, G_S, peak_factor, fs=10000.0):
 
 def test_eddy_fit_on_flux_just_past_the_map_warns_and_recovers_g(smaps, caplog):
     """Regression: the eddy fit stopped with 'flux linkage ... is outside the map's table' 0.02 % past it."""
-    from solenoid_fmu.recordings import flux_linkage
+    from solenoid_fmu.measure.recordings import flux_linkage
 
     top, x, G = smaps.psi_Wb[-1], smaps.x_m[0], 0.02
     # eq. 4 (trapezoid) cuts the triangle's sharp peak by ~0.1 %: scale the peak so the *measured* flux is 0.02 % past
@@ -172,7 +179,7 @@ def test_eddy_fit_on_flux_just_past_the_map_warns_and_recovers_g(smaps, caplog):
     rec = _eddy_recording_past_the_map(top, x, G, peak_factor=1.0002 / lost)
     past = float(np.max(np.abs(flux_linkage(rec).psi_Wb))) / top - 1
     assert 1e-4 < past < 3e-4  # the measured flux is about 0.02 % past the map's last node
-    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps"):
+    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps.core"):
         fit = fit_eddy([rec], smaps)
     assert any("past the map's last flux node" in r.getMessage() for r in caplog.records)
     assert np.isfinite(fit.G_eddy_S) and np.isfinite(fit.r2)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.cli import main
-from solenoid_fmu.diagnose import ResidualCase
 from solenoid_fmu.errors import FmuInputError, RecordingError, SolenoidError
-from solenoid_fmu.validate import ValidationError, signal_metrics, validate, validate_cases
+from solenoid_fmu.loop.diagnose import ResidualCase
+from solenoid_fmu.loop.validate import ValidationError, signal_metrics, validate, validate_cases
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -75,7 +75,7 @@ def test_validate_cases_structure_and_simulated_is_measured_minus_residual():
 
 # -- FMU runs on small rig campaigns ------------------------------------------------------------------
 def _campaign():
-    from solenoid_fmu.rig import CampaignConfig
+    from solenoid_fmu.rig.core import CampaignConfig
 
     return CampaignConfig(
         tests=("flux", "force_stroke", "ramp", "eddy", "voltage_step"),
@@ -92,9 +92,9 @@ def setup(tmp_path_factory):
     noise-free campaign of the rig whose truth is the same maps (no effects)."""
     import mapsfixture
 
-    from solenoid_fmu.fmu import build_fmu
-    from solenoid_fmu.model import load_tables
-    from solenoid_fmu.rig import Effects, run_campaign
+    from solenoid_fmu.fmu.export import build_fmu
+    from solenoid_fmu.realtime.model import load_tables
+    from solenoid_fmu.rig.core import Effects, run_campaign
 
     base = tmp_path_factory.mktemp("validate")
     maps_dir = mapsfixture.write_maps(base / "maps", G_eddy_S=0.02)
@@ -147,7 +147,7 @@ def test_a_wrong_coil_resistance_gives_a_larger_current_error(setup, good_result
     """The voltage step simulated with R 20 % high (header value) ends at a current 1/1.2 of the measured."""
     import dataclasses
 
-    from solenoid_fmu.recordings import read_recording
+    from solenoid_fmu.measure.recordings import read_recording
 
     good, _ = good_result
     f = next(p for p in setup["files"] if "voltage_step" in p.name)

@@ -46,8 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import RecordingError, SolenoidError
-from .material import MU_0, MU_R_MAX, BHCurve
+from ..errors import RecordingError, SolenoidError
+from ..field import MU_0, MU_R_MAX, BHCurve
 
 #: Last log-log slope of chi: saturation law chi ~ H^-1.2 or faster (keeps B bounded-slope).
 MAX_TAIL_SLOPE = -1.2
@@ -318,7 +318,7 @@ class _FluxModel:
     """
 
     def __init__(self, geometry, x_m, i_A, curve_fn, mesh_size, start_curve):
-        from .fem import Solver
+        from ..field import Solver
 
         self.solver = Solver(geometry, start_curve, mesh_size)
         self.x_m = float(x_m)
@@ -780,7 +780,7 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
 
 # -- from recordings --------------------------------------------------------------------------------
 def _as_geometry(geometry):
-    from .geometry import load_geometry
+    from ..field import load_geometry
 
     if geometry is None or isinstance(geometry, (str, Path)):
         return load_geometry(geometry)
@@ -788,7 +788,7 @@ def _as_geometry(geometry):
 
 
 def _as_curve(material) -> BHCurve:
-    from .material import load_material
+    from ..field import load_material
 
     if material is None or isinstance(material, (str, Path)):
         return load_material(material)
@@ -798,7 +798,7 @@ def _as_curve(material) -> BHCurve:
 def _absolute_flux(recs) -> tuple[list, list[str]]:
     """The flux recordings whose eq.-4 flux is absolute (start at zero current, a rest for the
     voltage offset), and a reason for each one left out."""
-    from .recordings import flux_linkage
+    from ..measure import flux_linkage
 
     keep, reasons = [], []
     for rec in recs:
@@ -827,11 +827,11 @@ def hysteresis_half_width(cc, i_A) -> np.ndarray:
     """Half the width of the hysteresis loop [Wb] (descending minus ascending branch, averaged
     over the peaks reaching each level) of a commutation curve at currents ``i_A`` [A]: how far the
     branch mean may sit from the magnetization curve the FEM computes."""
-    from .recordings import _peak_curves
+    from ..measure import peak_curves
 
     branches = [b for r in cc.results for b in r.branches]
     grid = np.linspace(0.0, max(b.peak_A for b in branches), 101)
-    _, widths = _peak_curves(branches, grid)
+    _, widths = peak_curves(branches, grid)
     stack = np.vstack(widths)
     ok = np.isfinite(stack).any(axis=0)
     with np.errstate(all="ignore"):
@@ -876,7 +876,7 @@ def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
 
 def fem_force_vs_stroke(geometry, curve: BHCurve, i_A: float, x_m, mesh_size: float) -> np.ndarray:
     """Co-energy force [N] (paper eq. 3) at current ``i_A`` [A] and gaps ``x_m`` [m] (FEM)."""
-    from .fem import Solver
+    from ..field import Solver
 
     solver = Solver(geometry, curve, mesh_size)
     out = []
@@ -890,7 +890,7 @@ def fem_force_vs_stroke(geometry, curve: BHCurve, i_A: float, x_m, mesh_size: fl
 
 def fem_flux(geometry, curve: BHCurve, i_A, x_m: float, mesh_size: float) -> np.ndarray:
     """Psi [Wb] at currents ``i_A`` [A] and gap ``x_m`` [m] (FEM, warm-started sweep)."""
-    from .fem import Solver
+    from ..field import Solver
 
     solver = Solver(geometry, curve, mesh_size)
     out = []
@@ -905,8 +905,8 @@ def fem_flux(geometry, curve: BHCurve, i_A, x_m: float, mesh_size: float) -> np.
 def write_curve_files(result: IdentificationResult, out_csv, sources=()) -> list[Path]:
     """Write the identified curve: ``out_csv`` (H_A_per_m,B_T, loadable by ``load_material``) and,
     beside it, ``.bh`` (FEMM style, "B H" per line, T and A/m) and ``.tab`` ("H B"), atomically."""
-    from .fileio import atomic_write_text
-    from .material import write_bh_csv
+    from ..field import write_bh_csv
+    from ..fileio import atomic_write_text
 
     out_csv = Path(out_csv)
     out_csv.parent.mkdir(parents=True, exist_ok=True)
@@ -958,7 +958,7 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
     RecordingError
         No ``flux`` recording among ``paths`` (or unreadable recordings).
     """
-    from .recordings import commutation_curve, read_recording
+    from ..measure import commutation_curve, read_recording
 
     paths = [Path(p) for p in paths]
     recs = [read_recording(p) for p in paths]
@@ -1028,8 +1028,8 @@ def write_report(result: IdentificationResult, report_dir, *, geometry=None, oth
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .fileio import atomic_write_text
-    from .recordings import commutation_curve
+    from ..fileio import atomic_write_text
+    from ..measure import commutation_curve
 
     out = Path(report_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -1176,7 +1176,7 @@ def _cli(args) -> int:
         raise SolenoidError(f"--max-evals must be >= 1, got {args.max_evals}")
     if args.max_evals is not None:
         kw["max_nfev" if args.method == "gn" else "max_eval_auglag"] = args.max_evals
-    from .fileio import refuse_overwriting_inputs, require_directory
+    from ..fileio import refuse_overwriting_inputs, require_directory
 
     inputs = [*args.recordings, args.geometry, args.start_material]
     out = Path(args.output)

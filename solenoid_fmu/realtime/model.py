@@ -175,10 +175,13 @@ DEFAULT_PARAMS = {
     "presliding_m": None,  # presliding displacement of the Dahl model [m]
 }
 
+#: Temperature coefficient of copper's resistance at 20 degC [1/K]; the one value every module uses.
+COPPER_ALPHA_PER_K = 0.00393
+
 #: Names of the effect sub-models (the ``effects`` section of maps.json; issue 7).
 EFFECT_NAMES = ("hysteresis", "eddy_ladder", "heating", "friction")
 #: Defaults of the effect scalars when the effects section leaves them out.
-_EFFECT_DEFAULTS = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": 0.00393, "friction_N": 0.0,
+_EFFECT_DEFAULTS = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": COPPER_ALPHA_PER_K, "friction_N": 0.0,
                     "presliding_m": 20e-6}
 _SWITCHES = {"hysteresis_on": "hysteresis", "eddy_ladder_on": "eddy_ladder", "heating_on": "heating",
              "friction_on": "friction"}

@@ -62,8 +62,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import MapsError, SolenoidError
-from .fileio import atomic_write_bytes
+from ..errors import MapsError, SolenoidError
+from ..fileio import atomic_write_bytes
 
 __all__ = [
     "SCHEMA",
@@ -790,13 +790,13 @@ def round_trip_error(maps: CharacteristicMaps, x_m=None, points_per_interval: in
 
 
 def _default_sweep() -> Callable:
-    from .fem import sweep_currents
+    from ..field import sweep_currents
 
     return sweep_currents
 
 
 def _code_version() -> dict:
-    from . import __version__
+    from .. import __version__
 
     commit, dirty = "unknown", None
     here = Path(__file__).resolve().parent
@@ -1766,7 +1766,7 @@ def _output_map_dir(output, inputs) -> Path:
     """The map directory ``output`` of a new sweep, checked before the sweep: not under a file, its
     name a valid maps name, and none of the files a build writes or removes (maps.npz, maps.json,
     exports, plots) one of ``inputs``."""
-    from .fileio import refuse_overwriting_inputs, require_directory
+    from ..fileio import refuse_overwriting_inputs, require_directory
 
     directory = require_directory(output, "-o")
     if (problem := name_problem(directory.name)) is not None:
@@ -1777,7 +1777,7 @@ def _output_map_dir(output, inputs) -> Path:
 
 def _output_plot_dir(plot_dir, inputs) -> Path:
     """``--plot DIR`` checked before any work: not under a file, no input among the plots written."""
-    from .fileio import refuse_overwriting_inputs, require_directory
+    from ..fileio import refuse_overwriting_inputs, require_directory
 
     plot_dir = require_directory(plot_dir, "--plot")
     return refuse_overwriting_inputs(plot_dir, inputs, written=[plot_dir / n for n in DERIVED_PLOTS])
@@ -1802,8 +1802,7 @@ def _cli(args) -> int:
     else:
         if args.output is None:
             raise MapsError("missing -o maps/NAME (or --from maps/NAME to use an existing map)")
-        from .geometry import load_geometry
-        from .material import load_material
+        from ..field import load_geometry, load_material
 
         directory = _output_map_dir(args.output, [args.geometry, args.material])
         geometry = load_geometry(args.geometry)

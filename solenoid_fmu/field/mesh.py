@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import MeshError
+from ..errors import MeshError
 from .geometry import Geometry
 
 #: Base target sizes [m] for mesh_size = 1.

@@ -27,9 +27,9 @@ import numbers
 from datetime import UTC, datetime
 from pathlib import Path
 
-from . import __version__
-from .errors import SolenoidError
-from .fileio import atomic_write_text
+from .. import __version__
+from ..errors import SolenoidError
+from ..fileio import atomic_write_text
 
 __all__ = ["ReportError", "errors_table", "figure_to_data_uri", "format_cell", "validation_section",
            "write_html_report"]

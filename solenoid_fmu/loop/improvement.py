@@ -63,13 +63,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import model as _model
-from .diagnose import (
-    _lowpass,  # first-order low-pass, exact for held samples (the ladder's filter)
-    detrend,
-)
-from .errors import SolenoidError
-from .hysteresis import HysteresisError
+from ..errors import SolenoidError
+from ..realtime import COPPER_ALPHA_PER_K, HysteresisError
+from ..realtime import model as _model
+from .diagnose import detrend, lowpass
 
 #: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
 ADDABLE = {"hysteresis": "hysteresis", "eddy": "eddy_ladder", "heating": "heating", "friction": "friction"}
@@ -152,7 +149,7 @@ def not_identifiable(recordings) -> dict:
     measured before the run (header ``coil_resistance_ohm``) and the current held for >= 0.2 s;
     ``friction``: a ``force_stroke`` recording in which the armature moves there and back.
     """
-    from .recordings import flux_linkage
+    from ..measure import flux_linkage
 
     def absolute(rec):
         if rec.voltage_V is None:
@@ -261,7 +258,7 @@ def _flux_data(rec, tables: _model.MapTables):
     current and position (the integration constant eq. 4 cannot give); one without any
     zero-current rest (no measured voltage offset) is left out (None).
     """
-    from .recordings import flux_linkage
+    from ..measure import flux_linkage
 
     fr = flux_linkage(rec)
     if not fr.offset_measured:
@@ -280,12 +277,12 @@ def _eddy_current(tables, effects, e, t) -> np.ndarray:
     lad = effects.get("eddy_ladder")
     if lad:
         for G, tau in zip(lad["G_S"], lad["tau_s"], strict=True):
-            out = out + G * _lowpass(e, t, tau)
+            out = out + G * lowpass(e, t, tau)
     return out
 
 
 def _hyst_current(effects, psi) -> np.ndarray:
-    from .hysteresis import PlayHysteresis
+    from ..realtime import PlayHysteresis
 
     hy = effects.get("hysteresis")
     if not hy:
@@ -299,7 +296,7 @@ def _hyst_current(effects, psi) -> np.ndarray:
 # -- fits ----------------------------------------------------------------------------------------
 def fit_hysteresis(tables, effects, recordings) -> tuple[dict, dict]:
     """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note)."""
-    from .hysteresis import fit_play_to_series
+    from ..realtime import fit_play_to_series
 
     recs = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
     if not recs:
@@ -343,7 +340,7 @@ def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
             continue
         t, psi, e, i, x = data
         y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
-        cols = [e] + [_lowpass(e, t, tau) for tau in LADDER_TAUS_S]
+        cols = [e] + [lowpass(e, t, tau) for tau in LADDER_TAUS_S]
         rows.append(np.column_stack(cols))
         ys.append(y)
         used.append(rec)
@@ -366,7 +363,7 @@ def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
 
 def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
     """``C_th`` from the eq.-4 flux residual of current-driven recordings (see module docstring)."""
-    alpha = float(((tables.meta.get("coil") or {}).get("temperature_coefficient_per_K")) or 0.00393)
+    alpha = float(((tables.meta.get("coil") or {}).get("temperature_coefficient_per_K")) or COPPER_ALPHA_PER_K)
     num = den = 0.0
     used = []
     for c in cases:
@@ -454,8 +451,8 @@ def fit_friction(tables, effects, cases) -> tuple[dict, dict]:
 
 # -- the loop ------------------------------------------------------------------------------------
 def _cases(tables, recordings, progress=None):
+    from ..fmu import simulate_model
     from .diagnose import cases_from_recordings
-    from .fmu import simulate_model
 
     return cases_from_recordings(None, recordings, progress=progress and (lambda n: progress(f"simulating {n}")),
                                  simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
@@ -597,7 +594,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
 
 def write_maps_dir(tables: _model.MapTables, fmu_path, dest_dir) -> Path:
     """Write the improved maps directory (the FMU's maps.npz, maps.json with the effects)."""
-    from .fileio import atomic_write_bytes, atomic_write_text
+    from ..fileio import atomic_write_bytes, atomic_write_text
 
     dest_dir = Path(dest_dir)
     dest_dir.mkdir(parents=True, exist_ok=True)
@@ -633,8 +630,8 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
         validation dict}``; before/after are RMS errors in the signal's unit from the FMUs (fmpy),
         ``*_nrmse`` by the recording's range, ``*_nrmse_fs`` by the full scale per kind.
     """
-    from .fmu import build_fmu
-    from .recordings import Recording, read_recording
+    from ..fmu import build_fmu
+    from ..measure import Recording, read_recording
     from .validate import validate
 
     say = progress or (lambda msg: None)
@@ -669,22 +666,22 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
               "not_identifiable": missing,
               "diagnoses": diagnoses, "recordings": rows, "before": before, "after": after}
     if report_dir is not None:
-        from .fileio import atomic_write_text
+        from ..fileio import atomic_write_text
 
         Path(report_dir).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(_jsonable(result), indent=1) + "\n")
+        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result), indent=1) + "\n")
     return result
 
 
-def _jsonable(obj):
+def jsonable(obj):
     if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
+        return {k: jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
     if isinstance(obj, np.generic):
-        return _jsonable(obj.item())
+        return jsonable(obj.item())
     return obj
 
 
@@ -709,18 +706,18 @@ def _cli(args) -> int:
     def progress(msg):
         print(msg, file=sys.stderr, flush=True)
 
-    from .fileio import refuse_overwriting_inputs
+    from ..fileio import refuse_overwriting_inputs
 
     refuse_overwriting_inputs(args.output, [args.fmu, *args.recordings])
     if args.report is not None:
-        from .fileio import require_directory
+        from ..fileio import require_directory
 
         refuse_overwriting_inputs(require_directory(args.report, "--report"), [args.fmu, *args.recordings], written=[])
     res = improve(args.fmu, args.recordings, args.output, report_dir=args.report, max_effects=args.max_effects,
                   min_gain=args.min_gain, progress=progress)
     if args.json:
         out = {k: res[k] for k in ("effects_added", "steps", "recordings", "fmu", "improved_fmu", "not_identifiable")}
-        print(json.dumps(_jsonable(out)))
+        print(json.dumps(jsonable(out)))
         return 0
     print(f"effects added: {', '.join(res['effects_added']) or 'none'}")
     for effect, what in res["not_identifiable"].items():

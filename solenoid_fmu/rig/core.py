@@ -71,10 +71,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SolenoidError
-from .hysteresis import HysteresisError, PreisachHysteresis
-from .model import ROS2_GAMMA, MapTables, ModelError, load_tables
-from .recordings import make_recording, write_recording
+from ..errors import SolenoidError
+from ..measure import make_recording, write_recording
+from ..realtime import (
+    COPPER_ALPHA_PER_K,
+    ROS2_GAMMA,
+    HysteresisError,
+    MapTables,
+    ModelError,
+    PreisachHysteresis,
+    load_tables,
+)
 
 __all__ = [
     "EFFECT_NAMES",
@@ -658,7 +665,9 @@ class TruthModel:
         if R20 is None:
             raise RigError("no coil resistance: give R20_ohm or maps with coil.resistance_ohm_20C")
         self.R20_ohm = _positive("R20_ohm", R20)
-        alpha = alpha_per_K if alpha_per_K is not None else coil.get("temperature_coefficient_per_K", 0.00393)
+        if alpha_per_K is None:
+            alpha_per_K = coil.get("temperature_coefficient_per_K", COPPER_ALPHA_PER_K)
+        alpha = alpha_per_K
         self.alpha_per_K = _positive("alpha_per_K", alpha, allow_zero=True)
         imax = max_current_A if max_current_A is not None else coil.get("max_current_A")
         if imax is None:
@@ -1158,7 +1167,7 @@ def add_cli(subparsers) -> None:
 
 
 def _cli(args) -> int:
-    from .fileio import refuse_overwriting_inputs, require_directory
+    from ..fileio import refuse_overwriting_inputs, require_directory
 
     out = require_directory(args.output, "-o")
     written = [out / "recordings", out / "truth.json"] + ([] if args.maps else [out / "truth" / "maps"])
@@ -1186,9 +1195,8 @@ def _cli(args) -> int:
     else:
         if material_path is None:
             raise RigError("give --material TRUE.csv (the FEM builds the true maps) or --maps MAPSDIR")
-        from .geometry import load_geometry
-        from .maps import build_maps, default_currents, default_positions, save_maps
-        from .material import load_material
+        from ..field import load_geometry, load_material
+        from ..maps import build_maps, default_currents, default_positions, save_maps
 
         geometry = load_geometry(args.geometry)
         material = load_material(material_path)

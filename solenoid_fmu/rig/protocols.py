@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import MapTables
-from .rig import CampaignConfig, DataAcquisition, Effects, Excitation, RigError, RigTruth, run_excitations
+from ..realtime import MapTables
+from .core import CampaignConfig, DataAcquisition, Effects, Excitation, RigError, RigTruth, run_excitations
 
 __all__ = ["SHAPES", "random_campaign", "random_protocol"]
 

@@ -42,7 +42,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from threadpoolctl import threadpool_limits
 
-from .errors import SolenoidError, SolverError
+from ..errors import SolenoidError, SolverError
 from .geometry import Geometry, load_geometry
 from .material import MU_0, NU_0, BHCurve, load_material
 from .mesh import MorphMesh, build_mesh

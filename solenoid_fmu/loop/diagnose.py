@@ -182,7 +182,7 @@ def conditioned_position(x_m: np.ndarray) -> np.ndarray:
     return out
 
 
-def _lowpass(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+def lowpass(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     """First-order low-pass y' = (x - y)/tau, exact for piecewise-constant x (any time grid)."""
     y = np.empty_like(x)
     acc = 0.0
@@ -232,7 +232,7 @@ def _features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.
         return np.column_stack([s * np.abs(psi) ** k for s in stops for k in (0, 1, 2)])
     if effect == "eddy":
         dpsi = _ddt(case.psi_Wb, t) / scales["dpsi"]
-        return np.column_stack([_lowpass(dpsi, t, tau) for tau in (1e-4, 1e-3, 1e-2)])
+        return np.column_stack([lowpass(dpsi, t, tau) for tau in (1e-4, 1e-3, 1e-2)])
     if effect == "heating":
         if signal not in ("voltage_V", "current_A", "psi_Wb"):
             return None
@@ -475,8 +475,8 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) ->
         ``simulate(recording, R_ohm) -> SimulationResult`` instead of the FMU (e.g.
         :func:`solenoid_fmu.fmu.simulate_model` in process).
     """
-    from .fmu import simulate_recording
-    from .recordings import Recording, read_recording
+    from ..fmu import simulate_recording
+    from ..measure import Recording, read_recording
 
     if simulate is None:
         def simulate(rec, R_ohm):
@@ -513,7 +513,7 @@ def residual_case(rec, simulate) -> ResidualCase | None:
     has no measured voltage offset either: its flux residual is known up to ``a + b t`` and is
     projected orthogonal to that trend (``ResidualCase.detrended``).
     """
-    from .recordings import flux_linkage
+    from ..measure import flux_linkage
 
     residuals, measured = {}, {}
     fr = None

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import MaterialError
-from .fileio import atomic_write_text
+from ..errors import MaterialError
+from ..fileio import atomic_write_text
 
 MU_0 = 4e-7 * np.pi  # vacuum permeability [H/m] (the classical value; 1e-9 relative to CODATA)
 NU_0 = 1.0 / MU_0

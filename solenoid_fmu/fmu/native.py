@@ -66,9 +66,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from . import model as _model
-from .errors import FmuBuildError
+from .. import __version__
+from ..errors import FmuBuildError
+from ..realtime import model as _model
 
 __all__ = [
     "CFLAGS",
@@ -351,7 +351,7 @@ def generate_sources(tables: _model.MapTables, dest_dir, *, guid: str | None = N
     str
         The GUID (``{...}`` form) the binary checks in ``fmi2Instantiate``.
     """
-    from .fmu import MODEL_IDENTIFIER
+    from .export import MODEL_IDENTIFIER
 
     dest = Path(dest_dir)
     dest.mkdir(parents=True, exist_ok=True)
@@ -406,7 +406,7 @@ def _raw_model_description(guid: str, params: dict, tables: _model.MapTables) ->
     """
     from lxml import etree
 
-    from .fmu import MODEL_IDENTIFIER, VARIABLES, interface_for
+    from .export import MODEL_IDENTIFIER, VARIABLES, interface_for
 
     root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName="solenoid", guid=guid,
                          numberOfEventIndicators="0")
@@ -441,7 +441,7 @@ def build_c_fmu(maps_dir, dest, tables: _model.MapTables) -> str:
     Returns the ``generationTool`` string. :func:`solenoid_fmu.fmu.build_fmu` then runs
     :func:`solenoid_fmu.fmu.finalize_model_description` and :func:`finish_model_description`.
     """
-    from .fmu import MODEL_IDENTIFIER
+    from .export import MODEL_IDENTIFIER
 
     _check_model_version()
     maps_dir = Path(maps_dir)
@@ -482,8 +482,8 @@ def finish_model_description(fmu_path, tables: _model.MapTables) -> None:
     """
     from lxml import etree
 
-    from .fmu import DOC_PYTHON_BACKEND as _DOC_PY
-    from .fmu import MODEL_IDENTIFIER, interface_for
+    from .export import DOC_PYTHON_BACKEND as _DOC_PY
+    from .export import MODEL_IDENTIFIER, interface_for
 
     variables = interface_for(tables)
     fmu_path = Path(fmu_path)

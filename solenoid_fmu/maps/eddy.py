@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SolenoidError
+from ..errors import SolenoidError
 
 #: Relative spread of the per-rate conductances above which one G_eddy is a poor description.
 RATE_SPREAD_LIMIT = 0.2
@@ -78,8 +78,8 @@ def _fit_origin(e: np.ndarray, y: np.ndarray) -> tuple[float, float]:
 def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
     """Induced voltage e = dPsi/dt [V] and eddy current i - i_f(Psi, x) [A] of one recording,
     and its current rate [A/s] (median |di/dt| where the current moves)."""
-    from .maps import i_f_at
-    from .recordings import flux_linkage
+    from ..measure import flux_linkage
+    from .core import i_f_at
 
     rec = recording
     if rec.voltage_V is None:
@@ -111,7 +111,7 @@ def fit_eddy(recordings, maps) -> EddyFit:
     maps : CharacteristicMaps
         The maps of the same solenoid (i_f(Psi, x)).
     """
-    from .recordings import Recording, read_recording
+    from ..measure import Recording, read_recording
 
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     if not recs:
@@ -164,7 +164,7 @@ def add_cli(sub) -> None:
 
 
 def _cli(args) -> int:
-    from .maps import load_maps, save_maps
+    from .core import load_maps, save_maps
 
     maps = load_maps(args.maps)
     fit = fit_eddy(args.recordings, maps)

@@ -70,9 +70,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from . import model as _model
-from .errors import FmuBuildError, FmuInputError, MapsError
+from .. import __version__
+from ..errors import FmuBuildError, FmuInputError, MapsError
+from ..realtime import model as _model
 
 __all__ = [
     "BACKENDS",
@@ -428,7 +428,7 @@ def load_maps_tables(maps_dir) -> _model.MapTables:
     maps_dir = Path(maps_dir)
     if not maps_dir.is_dir():
         raise MapsError(f"{maps_dir}: maps directory not found")
-    from .maps import load_maps
+    from ..maps import load_maps
 
     load_maps(maps_dir)  # one rule for every reader: the checks of `solenoid-fmu maps --from` (schema, units,
     # name, arrays, npz and json written together) before the model's own
@@ -484,13 +484,13 @@ def _build_python(maps_dir: Path, dest: Path, tables: _model.MapTables) -> str:
 
 def _build_c(maps_dir: Path, dest: Path, tables: _model.MapTables) -> str:
     """Write the native FMU (generated C, compiled here; see :mod:`solenoid_fmu.fmu_c`) to ``dest``."""
-    from . import fmu_c
+    from . import native as fmu_c
 
     return fmu_c.build_c_fmu(maps_dir, dest, tables)
 
 
 def _finish_c(fmu_path: Path, tables: _model.MapTables) -> None:
-    from . import fmu_c
+    from . import native as fmu_c
 
     fmu_c.finish_model_description(fmu_path, tables)
 
@@ -560,9 +560,9 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", model_name: str | 
             if problems:
                 raise FmuBuildError(f"{dest}: fmpy validation found {len(problems)} problem(s):\n"
                                     + "\n".join(f"  - {p}" for p in problems))
-        from .fileio import _umask
+        from ..fileio import umask
 
-        os.chmod(tmp, 0o666 & ~_umask())  # the mode open() would give, not mkstemp's private 0600
+        os.chmod(tmp, 0o666 & ~umask())  # the mode open() would give, not mkstemp's private 0600
         os.replace(tmp, dest)
     finally:
         if tmp.exists():
@@ -925,7 +925,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import FMU2Slave
 
-    from .recordings import Recording, read_recording
+    from ..measure import Recording, read_recording
 
     rec = recording if isinstance(recording, Recording) else read_recording(recording)
     if drive == "auto":
@@ -1021,7 +1021,7 @@ def _drive_inputs(rec, drive: str):
 
 
 def _simulated(rec, drive, u, out, out_names, by: str, messages) -> SimulationResult:
-    from .recordings import Recording
+    from ..measure import Recording
 
     if drive == "voltage":
         voltage, current = u, out[:, 1]
@@ -1053,7 +1053,7 @@ def simulate_model(tables: _model.MapTables, recording, *, drive: str = "auto", 
     params : dict, optional
         Further model parameters (:data:`solenoid_fmu.model.DEFAULT_PARAMS` keys).
     """
-    from .recordings import Recording, read_recording
+    from ..measure import Recording, read_recording
 
     rec = recording if isinstance(recording, Recording) else read_recording(recording)
     if drive == "auto":
@@ -1121,7 +1121,7 @@ def add_cli(subparsers) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from .fileio import refuse_overwriting_inputs
+    from ..fileio import refuse_overwriting_inputs
 
     refuse_overwriting_inputs(args.output, [args.maps_dir / "maps.npz", args.maps_dir / "maps.json"])
     path = build_fmu(args.maps_dir, args.output, backend=args.backend, model_name=args.name)
@@ -1145,11 +1145,11 @@ def backend_advice(backend: str) -> str:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from .recordings import write_recording
+    from ..measure import write_recording
 
     if args.R_ohm is not None and not (math.isfinite(args.R_ohm) and args.R_ohm > 0):
         raise FmuInputError(f"--R-ohm must be > 0, got {args.R_ohm!r}")
-    from .fileio import refuse_overwriting_inputs
+    from ..fileio import refuse_overwriting_inputs
 
     refuse_overwriting_inputs(args.output, [args.fmu, args.recording])
     res = simulate_recording(args.fmu, args.recording, drive=args.drive, R_ohm=args.R_ohm,

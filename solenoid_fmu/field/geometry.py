@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import GeometryError
+from ..errors import GeometryError
+from ..realtime import COPPER_ALPHA_PER_K
 
 MM = 1e-3
 
@@ -81,7 +82,7 @@ class Coil:
     region: str
     turns: float
     resistance_ohm_20C: float
-    temperature_coefficient_per_K: float = 0.00393
+    temperature_coefficient_per_K: float = COPPER_ALPHA_PER_K
     max_current_A: float = 1.0
 
 
@@ -297,7 +298,7 @@ def _from_dict(data: dict, path: Path, require_moving: bool = True) -> tuple[Geo
         region = coil_t.get("region")
         turns = _num(coil_t, "turns", "[coil]", problems)
         res = _num(coil_t, "resistance_ohm_20C", "[coil]", problems)
-        alpha = _num(coil_t, "temperature_coefficient_per_K", "[coil]", problems, 0.00393)
+        alpha = _num(coil_t, "temperature_coefficient_per_K", "[coil]", problems, COPPER_ALPHA_PER_K)
         imax = _num(coil_t, "max_current_A", "[coil]", problems, 1.0)
         if not isinstance(region, str):
             problems.append("[coil]: missing 'region'")

@@ -56,8 +56,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FmuInputError, RecordingError, SolenoidError
-from .fileio import atomic_write_bytes, atomic_write_text
+from ..errors import FmuInputError, RecordingError, SolenoidError
+from ..fileio import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "SIGNAL_LABELS",
@@ -304,7 +304,7 @@ def _unique_stems(names: list[str]) -> list[str]:
 # -- the validation run -------------------------------------------------------------------------------
 def _read_all(recordings) -> list:
     """Read every recording first, so a bad file fails before any simulation (all problems listed)."""
-    from .recordings import Recording, read_recording
+    from ..measure import Recording, read_recording
 
     recs, problems = [], []
     for item in recordings:
@@ -414,7 +414,7 @@ def _fmt(v) -> str:
 
 def _cli_validate(args) -> int:
     if args.report is not None:  # checked before the simulations, not after them
-        from .fileio import refuse_overwriting_inputs, require_directory
+        from ..fileio import refuse_overwriting_inputs, require_directory
 
         refuse_overwriting_inputs(require_directory(args.report, "--report"), [args.fmu, *args.recordings], written=[])
     n = len(args.recordings)

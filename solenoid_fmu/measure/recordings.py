@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import RecordingError
-from .fileio import atomic_write_text
+from ..errors import RecordingError
+from ..fileio import atomic_write_text
 
 __all__ = [
     "KINDS",
@@ -1178,7 +1178,7 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
                      "first sample (its integration constant Psi(0) is not measured)")
     branches = _split_branches(i, i_s, psi, thr, k_smooth)
     grid = np.linspace(0.0, max((br.peak_A for br in branches), default=0.0), n_points)
-    mean_curves, widths = _peak_curves(branches, grid)
+    mean_curves, widths = peak_curves(branches, grid)
     if mean_curves:
         stack = np.vstack(mean_curves)
         with np.errstate(invalid="ignore"):
@@ -1270,7 +1270,7 @@ def _branch_on_grid(i_A: np.ndarray, psi_Wb: np.ndarray, grid: np.ndarray) -> np
     return out
 
 
-def _peak_curves(branches: list[FluxBranch], grid: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def peak_curves(branches: list[FluxBranch], grid: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Per peak: mean of its two branches on ``grid`` and the width (descending - ascending)."""
     means, widths = [], []
     if grid.size < 2 or grid[-1] <= 0:
@@ -1374,7 +1374,7 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     if not branches:
         raise RecordingError("commutation_curve", ["no current peak in any recording"])
     grid = np.linspace(0.0, max(br.peak_A for br in branches), n_points)
-    means, _ = _peak_curves(branches, grid)
+    means, _ = peak_curves(branches, grid)
     stack = np.vstack(means)
     count = np.sum(np.isfinite(stack), axis=0)
     keep = count > 0
@@ -1456,7 +1456,7 @@ def add_cli(subparsers) -> None:
 
 def _cmd_flux(args: argparse.Namespace) -> int:
     if args.plot is not None:  # what matplotlib writes: a PNG, never over the recording
-        from .fileio import refuse_overwriting_inputs, require_directory
+        from ..fileio import refuse_overwriting_inputs, require_directory
 
         if args.plot.suffix.lower() != ".png":
             args.plot = args.plot.with_name(args.plot.name + ".png")

@@ -1,0 +1,1 @@
+"""identification: see the README's package map."""

@@ -1,0 +1,16 @@
+"""realtime: see the README's package map."""
+
+from .hysteresis import HysteresisError, PlayHysteresis, PreisachHysteresis, fit_play_to_series
+from .model import COPPER_ALPHA_PER_K, ROS2_GAMMA, MapTables, ModelError, load_tables
+
+__all__ = [
+    "COPPER_ALPHA_PER_K",
+    "HysteresisError",
+    "MapTables",
+    "ModelError",
+    "PlayHysteresis",
+    "PreisachHysteresis",
+    "ROS2_GAMMA",
+    "fit_play_to_series",
+    "load_tables",
+]

@@ -1,0 +1,1 @@
+"""rig: see the README's package map."""
