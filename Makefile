@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup test demo lint bench maps clean
+.PHONY: setup test test-fast demo lint bench maps clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,10 @@ lint: setup
 
 test: setup lint
 	$(BIN)/python -m pytest -n 2 -q
+
+# Everything but the tests marked slow (over ~20 s each): a quick check while working (~2 min).
+test-fast: setup lint
+	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
 # The main job: identify B(H) from the demo campaign, maps, eddy parameter, FMUs, validate,
 # diagnose, improve; report at build/ps45-demo/report.html, summary.json beside it.

@@ -1,7 +1,8 @@
 """field: see the README's package map."""
 
-from .fem import Solver, sweep_currents
-from .geometry import load_geometry
+from .fem import Solution, Solver, solve_point, sweep_currents
+from .geometry import Geometry, load_geometry
 from .material import MU_0, MU_R_MAX, BHCurve, load_material, write_bh_csv
 
-__all__ = ["BHCurve", "MU_0", "MU_R_MAX", "Solver", "load_geometry", "load_material", "sweep_currents", "write_bh_csv"]
+__all__ = ["BHCurve", "Geometry", "MU_0", "MU_R_MAX", "Solution", "Solver", "load_geometry", "load_material",
+           "solve_point", "sweep_currents", "write_bh_csv"]
