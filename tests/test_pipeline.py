@@ -1,11 +1,12 @@
 """The main job on the demo campaign (quick FEM preset) and the campaign-folder discovery."""
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
 
-from solenoid_fmu.pipeline import PipelineError, find_recordings, run_pipeline
+from solenoid_fmu.pipeline import PipelineError, find_recordings
 
 DEMO = Path(__file__).resolve().parent.parent / "fitting" / "ps45-demo"
 WORDS = {"hysteresis", "eddy", "heating", "friction", "sensor", "material"}
@@ -13,8 +14,12 @@ WORDS = {"hysteresis", "eddy", "heating", "friction", "sensor", "material"}
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
+    """The pipeline example (``examples/ex_pipeline.py``: ``sf.run_pipeline``) on the demo campaign."""
+    sys.path.insert(0, str(DEMO.parents[1] / "examples"))
+    import ex_pipeline
+
     out = tmp_path_factory.mktemp("pipeline")
-    summary = run_pipeline(DEMO, out, preset="quick", workers=2, progress=None)
+    summary = ex_pipeline.run(DEMO, out, preset="quick", workers=2)
     return out, summary
 
 
