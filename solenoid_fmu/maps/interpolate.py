@@ -109,15 +109,19 @@ def _x_weights(x_grid: np.ndarray, x_q: np.ndarray, nu: int = 0) -> np.ndarray:
     return spline(x_q, nu) if nu else spline(x_q)
 
 
-def _query(maps: CharacteristicMaps, i_A, x_m) -> tuple[np.ndarray, np.ndarray, tuple]:
-    i = np.asarray(i_A, dtype=np.float64)
+def _flat_query(values, x_m, what: str) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """A query's values (``what``: current or flux) and positions broadcast together: both flat, and the shape."""
+    v = np.asarray(values, dtype=np.float64)
     x = np.asarray(x_m, dtype=np.float64)
     try:
-        i, x = np.broadcast_arrays(i, x)
+        v, x = np.broadcast_arrays(v, x)
     except ValueError:
-        raise MapsError(f"current shape {i.shape} and position shape {x.shape} do not broadcast") from None
-    shape = i.shape
-    i, x = i.ravel(), x.ravel()
+        raise MapsError(f"{what} shape {v.shape} and position shape {x.shape} do not broadcast") from None
+    return v.ravel(), x.ravel(), v.shape
+
+
+def _query(maps: CharacteristicMaps, i_A, x_m) -> tuple[np.ndarray, np.ndarray, tuple]:
+    i, x, shape = _flat_query(i_A, x_m, "current")
     _check_range(i, maps.i_A, "current", "A", 1.0)
     _check_range(x, maps.x_m, "position", "mm", 1e3)
     return i, x, shape
@@ -210,14 +214,7 @@ def force_at(maps: CharacteristicMaps, i_A, x_m, stress: bool = False) -> np.nda
 
 
 def _bilinear(maps: CharacteristicMaps, table: np.ndarray, psi_Wb, x_m, allow_extrapolated: bool, where: str = ""):
-    p = np.asarray(psi_Wb, dtype=np.float64)
-    x = np.asarray(x_m, dtype=np.float64)
-    try:
-        p, x = np.broadcast_arrays(p, x)
-    except ValueError:
-        raise MapsError(f"flux shape {p.shape} and position shape {x.shape} do not broadcast") from None
-    shape = p.shape
-    p, x = p.ravel(), x.ravel()
+    p, x, shape = _flat_query(psi_Wb, x_m, "flux")
     _check_flux_range(p, maps.psi_Wb, where)
     _check_range(x, maps.x_m, "position", "mm", 1e3)
     jp = np.clip(np.searchsorted(maps.psi_Wb, p, side="right") - 1, 0, len(maps.psi_Wb) - 2)

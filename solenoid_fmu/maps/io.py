@@ -136,6 +136,7 @@ def load_maps(directory) -> CharacteristicMaps:
     Returns
     -------
     CharacteristicMaps
+        Its metadata is the sidecar without the ``schema``, ``schema_version`` and ``arrays`` entries.
 
     Raises
     ------
