@@ -124,7 +124,6 @@ __all__ = [
     "pchip_scaled_slopes",
     "MAPS_JSON",
     "MAPS_NPZ",
-    "MAPS_MAX_ARRAY_ELEMENTS",
     "read_maps_dir",
 ]
 
