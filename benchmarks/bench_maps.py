@@ -3,7 +3,7 @@
 Runs in one process tree:
 
 1. a serial baseline on a subset of the default grid (a few positions, all currents) in this process
-   (:class:`solenoid_fmu.maps.core.InlineExecutor`);
+   (:class:`solenoid_fmu.maps.InlineExecutor`);
 2. the whole default map (15 positions x 26 currents, mesh size 1.0) on the default executor
    (a process pool with one worker per core);
 
@@ -26,10 +26,9 @@ import numpy as np
 
 from solenoid_fmu.field.geometry import load_geometry
 from solenoid_fmu.field.material import load_material
-from solenoid_fmu.maps.core import (
+from solenoid_fmu.maps import (
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
-    DEFAULT_NX,
     InlineExecutor,
     build_maps,
     default_currents,
@@ -37,6 +36,7 @@ from solenoid_fmu.maps.core import (
     round_trip_error,
     save_maps,
 )
+from solenoid_fmu.maps.sweep import DEFAULT_NX
 
 GOAL_S = 180.0
 

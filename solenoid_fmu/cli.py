@@ -18,11 +18,10 @@ from .errors import SolenoidError
 #: Modules that contribute subcommands, in the order of the data flow.
 COMMAND_MODULES = (
     "field.fem",
-    "maps.core",
+    "maps.cli",
     "measure.recordings",
     "rig.core",
     "identification.identify",
-    "maps.eddy",
     "fmu.export",
     "loop.validate",
     "loop.diagnose",

@@ -224,7 +224,7 @@ def test_every_stage_takes_randomized_recordings(rig_maps, tmp_path_factory, see
     assert all(0.0 <= m["nrmse_fs"] <= 1.0 for r in v["recordings"] for m in r["signals"].values())
     d = diagnose(cases)
     assert all(math.isfinite(c.score) and c.score <= 1.0 for c in d.ranking)
-    from solenoid_fmu.maps.core import load_maps
+    from solenoid_fmu.maps import load_maps
 
     fit = fit_eddy([r for r in recs if r.kind == "eddy"], load_maps(maps_dir))
     assert math.isfinite(fit.G_eddy_S)
@@ -346,7 +346,7 @@ def test_not_identifiable_names_what_to_add(rig_campaign, rig_maps):
 
 def test_eddy_fit_leaves_out_recordings_without_absolute_flux(rig_maps, rig_campaign):
     from solenoid_fmu.errors import SolenoidError
-    from solenoid_fmu.maps.core import load_maps
+    from solenoid_fmu.maps import load_maps
     from solenoid_fmu.maps.eddy import fit_eddy
 
     maps = load_maps(rig_maps[1])

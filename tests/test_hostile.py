@@ -226,7 +226,7 @@ def _npz_with_member(src_dir, dst_dir, name, header_array):
 
 def test_npz_members_are_checked_before_they_are_loaded(tmp_path):
     from solenoid_fmu.errors import MapsError
-    from solenoid_fmu.maps.core import load_maps
+    from solenoid_fmu.maps import load_maps
 
     src = mapsfixture.write_maps(tmp_path / "src")
     huge = np.lib.stride_tricks.as_strided(np.zeros(1), shape=(100_000, 10_000), strides=(0, 0))  # 8 GB declared
@@ -240,7 +240,7 @@ def test_npz_members_are_checked_before_they_are_loaded(tmp_path):
 
 
 def test_rebuilding_a_map_directory_removes_the_earlier_exports(tmp_path):
-    from solenoid_fmu.maps.core import DERIVED_PLOTS, remove_stale_exports
+    from solenoid_fmu.maps.export import DERIVED_PLOTS, remove_stale_exports
 
     d = mapsfixture.write_maps(tmp_path / "m")
     (d / "plots").mkdir()

@@ -130,7 +130,7 @@ def test_a_maps_name_with_control_characters_is_refused_before_the_sweep(tmp_pat
 def test_ctrl_c_inside_a_sweep_worker_is_one_line(monkeypatch, tmp_path, capsys):
     from solenoid_fmu.field.geometry import load_geometry
     from solenoid_fmu.field.material import load_material
-    from solenoid_fmu.maps import core as maps
+    from solenoid_fmu.maps import sweep as maps
 
     calls = []
 

@@ -27,7 +27,7 @@ from solenoid_fmu.identification.identify import (
     nlopt_code_name,
     scaled_curve,
 )
-from solenoid_fmu.maps.core import force_at, load_maps, psi_at
+from solenoid_fmu.maps import force_at, load_maps, psi_at
 
 DEMO = "fitting/ps45-demo"
 X_ID = 1.5e-3

@@ -23,9 +23,11 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
+from solenoid_fmu import maps as M
 from solenoid_fmu.cli import main as cli_main
 from solenoid_fmu.errors import MapsError
-from solenoid_fmu.maps import core as M
+from solenoid_fmu.maps.cli import parse_range
+from solenoid_fmu.maps.tables import ARRAY_UNITS
 
 # ---------------------------------------------------------------------------------------------
 # The analytic stand-in
@@ -378,7 +380,7 @@ def test_save_load_identity(amaps, tmp_path):
     assert prov["solver"]["operating_points"] == 26 * 27
     assert meta["eddy"] == {"G_eddy_S": None, "source": "not identified (the FEM is magnetostatic)"}
     with np.load(directory / "maps.npz", allow_pickle=False) as data:  # plain arrays, no pickle
-        assert set(data.files) == set(M.ARRAY_UNITS)
+        assert set(data.files) == set(ARRAY_UNITS)
     # loading a file path inside the directory works the same
     assert M.load_maps(directory / "maps.json").shape == amaps.shape
 
@@ -542,12 +544,12 @@ def test_mat_file_has_the_documented_variables(amaps, tmp_path):
 )
 def test_range_parser_is_strict(text, message):
     with pytest.raises(argparse.ArgumentTypeError, match=message):
-        M.parse_range(text, "--x-mm")
+        parse_range(text, "--x-mm")
 
 
 def test_range_parser_accepts_good_ranges():
-    assert M.parse_range("0.2:3.5:15") == (0.2, 3.5, 15)
-    assert M.parse_range("0:2.5:26") == (0.0, 2.5, 26)
+    assert parse_range("0.2:3.5:15") == (0.2, 3.5, 15)
+    assert parse_range("0:2.5:26") == (0.0, 2.5, 26)
 
 
 def test_cli_plots_and_exports_an_existing_map(amaps, tmp_path, capsys):

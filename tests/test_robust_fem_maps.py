@@ -15,15 +15,8 @@ from solenoid_fmu.errors import MapsError, SolverError
 from solenoid_fmu.field import fem
 from solenoid_fmu.field.geometry import load_geometry
 from solenoid_fmu.field.material import load_material
-from solenoid_fmu.maps.core import (
-    FLUX_EXTRAPOLATION_LIMIT,
-    InlineExecutor,
-    build_maps,
-    default_currents,
-    i_f_at,
-    load_maps,
-)
-from solenoid_fmu.maps.eddy import fit_eddy
+from solenoid_fmu.maps import InlineExecutor, build_maps, default_currents, fit_eddy, i_f_at, load_maps
+from solenoid_fmu.maps.interpolate import FLUX_EXTRAPOLATION_LIMIT
 from solenoid_fmu.measure.recordings import make_recording
 from solenoid_fmu.pipeline import CAMPAIGN_CURRENT_MARGIN, PRESETS, _maps_grid, maps_current_grid
 
@@ -136,7 +129,7 @@ def test_flux_just_past_the_last_node_extrapolates_with_one_warning(smaps, caplo
     top = smaps.psi_Wb[-1]
     x = smaps.x_m[0]
     psi = np.array([0.5 * top, top, top * (1 + 2e-4), top * (1 + 1e-3)])
-    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps.core"):
+    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps.interpolate"):
         i_f = i_f_at(smaps, psi, x, where="run7.csv")
     warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warnings) == 1  # one per lookup batch, not one per sample
@@ -179,7 +172,7 @@ def test_eddy_fit_on_flux_just_past_the_map_warns_and_recovers_g(smaps, caplog):
     rec = _eddy_recording_past_the_map(top, x, G, peak_factor=1.0002 / lost)
     past = float(np.max(np.abs(flux_linkage(rec).psi_Wb))) / top - 1
     assert 1e-4 < past < 3e-4  # the measured flux is about 0.02 % past the map's last node
-    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps.core"):
+    with caplog.at_level(logging.WARNING, logger="solenoid_fmu.maps.interpolate"):
         fit = fit_eddy([rec], smaps)
     assert any("past the map's last flux node" in r.getMessage() for r in caplog.records)
     assert np.isfinite(fit.G_eddy_S) and np.isfinite(fit.r2)

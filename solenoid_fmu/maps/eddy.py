@@ -3,7 +3,7 @@
 The model's eddy term (paper eq. 2 with the parameter the paper calls L_eddy) is
 ``i_eddy = G_eddy * dPsi/dt``. From an ``eddy`` recording (triangular currents at several rates):
 
-- Psi(t) by paper eq. 4 (offset removed, :func:`solenoid_fmu.recordings.flux_linkage`), and the
+- Psi(t) by paper eq. 4 (offset removed, :func:`solenoid_fmu.measure.flux_linkage`), and the
   induced voltage e = dPsi/dt;
 - the field-generating current from the maps, i_f(Psi, x) (a measured flux up to 5 % of the map's flux
   span past its last node is extrapolated linearly, with a logged warning naming the recording);
@@ -17,13 +17,14 @@ says so (``single_term_ok`` False and a message) rather than hiding it.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import SolenoidError
+from ..measure import Recording, flux_linkage, read_recording
+from .interpolate import i_f_at
+from .tables import CharacteristicMaps
 
 #: Relative spread of the per-rate conductances above which one G_eddy is a poor description.
 RATE_SPREAD_LIMIT = 0.2
@@ -78,9 +79,6 @@ def _fit_origin(e: np.ndarray, y: np.ndarray) -> tuple[float, float]:
 def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
     """Induced voltage e = dPsi/dt [V] and eddy current i - i_f(Psi, x) [A] of one recording,
     and its current rate [A/s] (median |di/dt| where the current moves)."""
-    from ..measure import flux_linkage
-    from .core import i_f_at
-
     rec = recording
     if rec.voltage_V is None:
         raise SolenoidError(f"{rec.path}: an eddy fit needs a voltage_V column (paper eq. 4)")
@@ -102,7 +100,7 @@ def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
     return e, i - i_f, rate
 
 
-def fit_eddy(recordings, maps) -> EddyFit:
+def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
     """Fit G_eddy [S] from ``eddy`` recordings (other kinds are refused by name).
 
     Parameters
@@ -111,8 +109,6 @@ def fit_eddy(recordings, maps) -> EddyFit:
     maps : CharacteristicMaps
         The maps of the same solenoid (i_f(Psi, x)).
     """
-    from ..measure import Recording, read_recording
-
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     if not recs:
         raise SolenoidError("fit_eddy needs at least one eddy recording")
@@ -151,33 +147,3 @@ def fit_eddy(recordings, maps) -> EddyFit:
     if left_out:
         msg += f"; left out {len(left_out)} recording(s): " + "; ".join(left_out)
     return EddyFit(g, r2, per, ok, msg)
-
-
-def add_cli(sub) -> None:
-    """Register ``solenoid-fmu eddy``."""
-    p = sub.add_parser("eddy", help="fit the eddy-current parameter G_eddy from eddy recordings (paper fig. 14)")
-    p.add_argument("recordings", nargs="+", help="eddy recordings (CSV, format v1)")
-    p.add_argument("--maps", required=True, help="maps directory of the same solenoid")
-    p.add_argument("--write", action="store_true", help="store the fitted G_eddy in the maps (maps.json eddy)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cli)
-
-
-def _cli(args) -> int:
-    from .core import load_maps, save_maps
-
-    maps = load_maps(args.maps)
-    fit = fit_eddy(args.recordings, maps)
-    if args.write:
-        save_maps(maps.with_eddy(fit.G_model_S, source=", ".join(Path(r).name for r in args.recordings)),
-                  args.maps)
-    if args.json:
-        print(json.dumps(fit.as_dict()))
-        return 0
-    for p in fit.per_recording:
-        print(f"{p['file']:<28} {p['rate_A_per_s']:8.3g} A/s   G = {p['G_eddy_S'] * 1e3:8.4g} mS   R^2 = {p['r2']:.3f}")
-    print(f"pooled: G_eddy = {fit.G_eddy_S * 1e3:.4g} mS, R^2 = {fit.r2:.3f}")
-    print(fit.message)
-    if args.write:
-        print(f"stored in {args.maps}/maps.json")
-    return 0

@@ -1,16 +1,34 @@
 """realtime: see the README's package map."""
 
 from .hysteresis import HysteresisError, PlayHysteresis, PreisachHysteresis, fit_play_to_series
-from .model import COPPER_ALPHA_PER_K, ROS2_GAMMA, MapTables, ModelError, load_tables
+from .model import (
+    COPPER_ALPHA_PER_K,
+    MAPS_JSON,
+    MAPS_NPZ,
+    MAPS_SCHEMA,
+    MAPS_SCHEMA_VERSION,
+    ROS2_GAMMA,
+    MapTables,
+    ModelError,
+    ModelMapsError,
+    load_tables,
+    read_maps_dir,
+)
 
 __all__ = [
     "COPPER_ALPHA_PER_K",
     "HysteresisError",
+    "MAPS_JSON",
+    "MAPS_NPZ",
+    "MAPS_SCHEMA",
+    "MAPS_SCHEMA_VERSION",
     "MapTables",
     "ModelError",
+    "ModelMapsError",
     "PlayHysteresis",
     "PreisachHysteresis",
     "ROS2_GAMMA",
     "fit_play_to_series",
     "load_tables",
+    "read_maps_dir",
 ]

@@ -1,0 +1,169 @@
+"""The maps file format: one writer (:func:`save_maps`) and one reader (:func:`load_maps`) of a maps directory.
+
+A maps directory holds ``maps.npz`` (the arrays of :data:`solenoid_fmu.maps.tables.ARRAY_UNITS`,
+float64, no pickles) and ``maps.json`` (schema name and version, units, coil, stroke, eddy,
+provenance, interpolation, and the npz file's sha256 and shapes under ``"arrays"``). The files are
+read by :func:`solenoid_fmu.realtime.read_maps_dir`, the reader the real-time model carries into every
+FMU; :func:`load_maps` adds the checks of what the content means and returns a
+:class:`~solenoid_fmu.maps.tables.CharacteristicMaps`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MapsError
+from ..fileio import atomic_write_bytes
+from ..realtime import MAPS_JSON, MAPS_NPZ, MAPS_SCHEMA, MAPS_SCHEMA_VERSION, ModelMapsError, read_maps_dir
+from .tables import ARRAY_UNITS, FORCE_METHODS, CharacteristicMaps, array_problems, problem_message
+
+__all__ = ["load_maps", "name_problem", "save_maps"]
+
+
+def save_maps(maps: CharacteristicMaps, directory) -> Path:
+    """Write ``maps.npz`` + ``maps.json`` into ``directory`` (created) atomically; never pickle.
+
+    Each file is written under a temporary name in the same directory and renamed into place; the
+    sidecar records the npz file's sha256 (``"arrays"``) so a reader can tell a mismatched pair
+    (files without that entry, written by other tools in the shared format, are accepted).
+
+    Parameters
+    ----------
+    maps : CharacteristicMaps
+    directory : path-like
+        Target directory, e.g. ``maps/ps45-literature``.
+
+    Returns
+    -------
+    Path
+        The directory.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    np.savez(buf, **{k: np.ascontiguousarray(v, dtype=np.float64) for k, v in maps.arrays().items()})
+    npz = buf.getvalue()
+    meta = {
+        "schema": MAPS_SCHEMA,
+        "schema_version": MAPS_SCHEMA_VERSION,
+        **{k: v for k, v in maps.metadata.items() if k not in ("schema", "schema_version", "arrays")},
+        "units": dict(ARRAY_UNITS),
+        "arrays": {
+            "file": MAPS_NPZ,
+            "sha256": hashlib.sha256(npz).hexdigest(),
+            "shapes": {k: list(v.shape) for k, v in maps.arrays().items()},
+        },
+    }
+    meta.setdefault("name", directory.name)
+    text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
+    atomic_write_bytes(directory / MAPS_NPZ, npz)
+    atomic_write_bytes(directory / MAPS_JSON, text.encode("utf-8"))
+    return directory
+
+
+def name_problem(name) -> str | None:
+    """What is wrong with a maps name (None if nothing): it travels into modelDescription.xml,
+    recording headers and C comments, so it must be one line of at most 200 characters."""
+    if not isinstance(name, str):
+        return "'name' must be a string"
+    if any(ord(ch) < 32 or ord(ch) == 127 for ch in name) or len(name) > 200:
+        return f"'name' must be one line of at most 200 characters without control characters, got {name[:60]!r}"
+    return None
+
+
+def _meta_problems(meta: dict) -> list[str]:
+    problems = []
+    if (problem := name_problem(meta.get("name"))) is not None:
+        problems.append(problem)
+    if meta.get("force_method") not in FORCE_METHODS:
+        problems.append(
+            f"'force_method' must be one of {list(FORCE_METHODS)}, got {meta.get('force_method')!r}"
+        )
+    units = meta.get("units")
+    if not isinstance(units, dict):
+        problems.append("'units' must be an object mapping array names to units")
+    else:
+        for name, unit in ARRAY_UNITS.items():
+            if units.get(name) != unit:
+                problems.append(f"units of {name} must be {unit!r}, file says {units.get(name)!r}")
+    coil = meta.get("coil")
+    if not isinstance(coil, dict):
+        problems.append("'coil' must be an object")
+    else:
+        for key in ("turns", "resistance_ohm_20C", "temperature_coefficient_per_K", "max_current_A"):
+            v = coil.get(key)
+            if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
+                problems.append(f"coil.{key} must be a finite number, got {v!r}")
+            elif key != "temperature_coefficient_per_K" and v <= 0:
+                problems.append(f"coil.{key} must be > 0, got {v!r}")
+    eddy = meta.get("eddy")
+    if not isinstance(eddy, dict) or "G_eddy_S" not in eddy:
+        problems.append("'eddy' must be an object with 'G_eddy_S' (number or null)")
+    else:
+        g = eddy["G_eddy_S"]
+        if g is not None and (not isinstance(g, int | float) or isinstance(g, bool) or not math.isfinite(g)
+                              or g < 0):
+            problems.append(f"eddy.G_eddy_S must be null or a finite number >= 0 S, got {g!r}")
+    if not isinstance(meta.get("provenance"), dict):
+        problems.append("'provenance' must be an object")
+    arrays = meta.get("arrays")
+    if arrays is not None and (not isinstance(arrays, dict) or not isinstance(arrays.get("sha256"), str)):
+        problems.append("'arrays', when present, must be an object with the sha256 of maps.npz")
+    return problems
+
+
+def _refuse_meta(meta: dict, json_path) -> None:
+    """The reader's ``check_meta``: refuse a sidecar with problems before its npz is read."""
+    problems = _meta_problems(meta)
+    if problems:
+        raise MapsError(problem_message(str(json_path), problems))
+
+
+def load_maps(directory) -> CharacteristicMaps:
+    """Read maps written by :func:`save_maps`, refusing anything malformed.
+
+    Parameters
+    ----------
+    directory : path-like
+        The map directory (or its ``maps.json``/``maps.npz``).
+
+    Returns
+    -------
+    CharacteristicMaps
+        Its metadata is the sidecar without the ``schema``, ``schema_version`` and ``arrays`` entries.
+
+    Raises
+    ------
+    MapsError
+        Naming the file and every problem: missing file, invalid JSON, wrong schema name or version,
+        missing arrays, wrong shapes, NaN/inf, non-monotone grids, wrong units, a npz that does not
+        belong to the sidecar.
+    """
+    directory = Path(directory)
+    if directory.is_file() and directory.name in (MAPS_NPZ, MAPS_JSON):
+        directory = directory.parent
+    try:
+        meta, stored = read_maps_dir(directory, check_meta=_refuse_meta)
+    except ModelMapsError as exc:
+        raise MapsError(str(exc)) from None
+    npz_path = directory / MAPS_NPZ
+    arrays: dict[str, np.ndarray] = {}
+    problems = []
+    for name, arr in stored.items():
+        if name not in ARRAY_UNITS:
+            continue
+        if arr.dtype.kind not in "fiu":
+            problems.append(f"array {name} has dtype {arr.dtype}, expected float64")
+            continue
+        arrays[name] = arr.astype(np.float64)
+    problems += array_problems(arrays) if not problems else []
+    if problems:
+        raise MapsError(problem_message(str(npz_path), problems))
+    metadata = {k: v for k, v in meta.items() if k not in ("schema", "schema_version", "arrays")}
+    return CharacteristicMaps(**arrays, metadata=metadata)
