@@ -49,7 +49,7 @@ def main(n_loop: int = 24, n_pipeline: int = 2) -> dict:
     from conftest import small_campaign
 
     from solenoid_fmu.realtime.model import load_tables
-    from solenoid_fmu.rig.core import Effects, run_campaign
+    from solenoid_fmu.rig import Effects, run_campaign
     from solenoid_fmu.rig.protocols import random_campaign
 
     out: dict = {}

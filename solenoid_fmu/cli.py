@@ -20,7 +20,7 @@ COMMAND_MODULES = (
     "field.fem",
     "maps.core",
     "measure.recordings",
-    "rig.core",
+    "rig.cli",
     "identification.identify",
     "maps.eddy",
     "fmu.export",
