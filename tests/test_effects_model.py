@@ -105,7 +105,7 @@ def test_play_operator_matches_hysteresis_module(tmp_path):
     ref = play.run(b)
     plays = [0.0, 0.0, 0.0]
     hy = m._effects_data(tab)["hysteresis"]
-    got = [m._play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], v) for v in b]
+    got = [m.play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], v) for v in b]
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
 
 
