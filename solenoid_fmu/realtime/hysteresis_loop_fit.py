@@ -162,9 +162,10 @@ def _monotone_shape(g0, r, w, G, M, Phi, half_width, mean_h, b_grid, row_w, Ha, 
     """Refit the shape factor with every branch of the model kept monotone.
 
     For fixed weights the model's anhysteretic curve is ``H_an = mean - g(b) (M w)`` and any
-    branch has slope ``dH/db >= H_an' - |g'| sum_k w_k r_k`` (see :class:`PlayHysteresis`), so
-    requiring ``H_an' -+ g' S0 >= eps`` on every grid interval is a set of linear inequalities in
-    the shape nodes: a small quadratic programme (scipy SLSQP). ``eps`` is a tenth of the
+    branch has slope ``dH/db >= H_an' - |g'| sum_k w_k r_k`` (see
+    :class:`~solenoid_fmu.realtime.hysteresis.PlayHysteresis`), so requiring
+    ``H_an' -+ g' S0 >= eps`` on every grid interval is a set of linear inequalities in the shape
+    nodes: a small quadratic programme (scipy SLSQP). ``eps`` is a tenth of the
     smallest slope dH/dB of the measured branches. Returns ``g0`` unchanged when it already
     satisfies the constraints or when the programme fails.
     """
@@ -237,7 +238,8 @@ def fit_play_to_loop(H_asc, B_asc, H_desc, B_desc, n_plays: int = 24, n_shape: i
     -------
     PlayLoopFit
         ``((b_grid, h_an), play)``: the anhysteretic curve ``H_an(b)`` (strictly increasing
-        table over the loop's B range) and the fitted :class:`PlayHysteresis`.
+        table over the loop's B range) and the fitted play operator
+        (:class:`~solenoid_fmu.realtime.hysteresis.PlayHysteresis`).
 
     Notes
     -----
@@ -257,7 +259,8 @@ def fit_play_to_loop(H_asc, B_asc, H_desc, B_desc, n_plays: int = 24, n_shape: i
     A major loop says little about minor loops: with the thresholds below a quarter of the
     span, symmetric minor loops reach the full major-loop width at about a third of the
     saturation flux. Where loops of several amplitudes are recorded (the flux triangles of a
-    test campaign), fit them together with :func:`fit_play_to_series`.
+    test campaign), fit them together with
+    :func:`~solenoid_fmu.realtime.hysteresis_fit.fit_play_to_series`.
     """
     Ha, Ba = _check_branch("ascending", H_asc, B_asc)
     Hd, Bd = _check_branch("descending", H_desc, B_desc)

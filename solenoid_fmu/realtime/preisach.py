@@ -78,8 +78,9 @@ class PreisachHysteresis:
 
     Notes
     -----
-    A different model class from :class:`PlayHysteresis` on purpose: fitting the play model to
-    rig data must not be circular. The operator is evaluated exactly for the continuous
+    A different model class from the play operator
+    (:class:`~solenoid_fmu.realtime.hysteresis.PlayHysteresis`) on purpose: fitting the play model
+    to rig data must not be circular. The operator is evaluated exactly for the continuous
     density (no relay grid) with the Everett function ``E(alpha, beta)``, the density mass of
     the triangle ``beta <= beta' <= alpha' <= alpha``, which factorizes into 1-D tables:
     ``E = H1(alpha) - H1(beta) - G(beta) (Fa(alpha) - Fa(beta))``. The state is the stack of
