@@ -140,7 +140,7 @@ def run_campaign(tables: MapTables, output_dir, effects: Effects | None = None,
     effects : Effects, optional
         Effects of the truth (default none).
     campaign : CampaignConfig, optional
-        The tests (default :class:`CampaignConfig`).
+        The tests (default :class:`~solenoid_fmu.rig.CampaignConfig`).
     seed : int or None
         Seed of the sensor noise.
     material_path, maps_dir : path-like, optional
@@ -166,7 +166,7 @@ def run_excitations(tables: MapTables, output_dir, excitations, *, effects: Effe
 
     The coil cools for ``campaign.pause_s`` between recordings. ``file_names`` (one per
     excitation) default to ``NN_<name>.csv``; ``derived`` adds entries to the truth's ``derived``.
-    Column order and optional header keys come from each :class:`Excitation`. See
+    Column order and optional header keys come from each :class:`~solenoid_fmu.rig.Excitation`. See
     :func:`run_campaign` for the other parameters.
     """
     out = Path(output_dir)

@@ -114,7 +114,7 @@ def measure(truth: TruthResult, exc: Excitation, daq: DataAcquisition | None, rn
     Parameters
     ----------
     truth : TruthResult
-        Output of :meth:`TruthModel.simulate`.
+        Output of :meth:`~solenoid_fmu.rig.TruthModel.simulate`.
     exc : Excitation
         The excitation (kind, channels, notes).
     daq : DataAcquisition or None

@@ -29,7 +29,7 @@ Each effect is a frozen dataclass of parameters; :class:`Effects` holds the ones
     pre-sliding distance, held when the carriage stops). The load cell reads
     ``F_mag + F_fric``: with the gap opening (x rising) friction acts with the magnetic force,
     closing against it, as in the paper's fig. 8 (1-5 N).
-``noise`` (:class:`DataAcquisition`)
+``noise`` (:class:`~solenoid_fmu.rig.DataAcquisition`)
     The data acquisition: Gaussian sensor noise on every channel, a voltage offset (5 mV),
     a current offset, and quantization of each channel to its ADC resolution
     (:mod:`solenoid_fmu.rig.daq`).
@@ -60,7 +60,7 @@ class HysteresisEffect:
         the coil's maximum current (maps.json ``coil.max_current_A``).
     b_c_rel, spread_rel : float
         Peak position and width of the Preisach density as fractions of the saturation flux
-        (see :meth:`PreisachHysteresis.with_coercive`).
+        (see :meth:`~solenoid_fmu.realtime.PreisachHysteresis.with_coercive`).
     saturation_Wb : float, optional
         Flux linkage [Wb] beyond which every hysteron is switched; default the maps' largest
         flux ``psi_Wb[-1]``.

@@ -115,7 +115,7 @@ class TruthModel:
                  demagnetize: bool = True) -> TruthResult:
         """Run one excitation on the truth and return the true signals at the sample times.
 
-        With ``exc.preroll_s > 0`` the unrecorded lead-in (see :class:`Excitation`) is simulated
+        With ``exc.preroll_s > 0`` the unrecorded lead-in (see :class:`~solenoid_fmu.rig.Excitation`) is simulated
         first and its samples are dropped: the result starts energized at time 0.
 
         Parameters
@@ -123,7 +123,7 @@ class TruthModel:
         exc : Excitation
             What the rig drives.
         cfg : CampaignConfig, optional
-            Amplifier gains and limit, ambient temperature (default :class:`CampaignConfig`).
+            Amplifier gains and limit, ambient temperature (default :class:`~solenoid_fmu.rig.CampaignConfig`).
         T_start_C : float, optional
             Coil temperature at the start [degC]; default the ambient.
         demagnetize : bool
