@@ -49,8 +49,7 @@ def main(n_loop: int = 24, n_pipeline: int = 2) -> dict:
     from conftest import small_campaign
 
     from solenoid_fmu.realtime.model import load_tables
-    from solenoid_fmu.rig.core import Effects, run_campaign
-    from solenoid_fmu.rig.protocols import random_campaign
+    from solenoid_fmu.rig import Effects, random_campaign, run_campaign
 
     out: dict = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -20,7 +20,7 @@ COMMAND_MODULES = (
     "field.fem",
     "maps.cli",
     "measure.recordings",
-    "rig.core",
+    "rig.cli",
     "identification.identify",
     "fmu.export",
     "loop.validate",

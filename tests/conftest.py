@@ -9,7 +9,7 @@ import pytest
 
 def small_campaign():
     """A short campaign of every kind (a few seconds of rig time per recording)."""
-    from solenoid_fmu.rig.core import CampaignConfig
+    from solenoid_fmu.rig import CampaignConfig
 
     return CampaignConfig(
         flux_peaks_A=(0.5, 1.0, 1.5), flux_cycles=1, flux_rate_A_per_s=2.0, flux_sample_rate_Hz=200.0,
@@ -37,7 +37,7 @@ def rig_maps(tmp_path_factory):
 @pytest.fixture(scope="session")
 def rig_campaign(rig_maps):
     """Factory: effects string -> sorted recording paths of the small campaign with those effects."""
-    from solenoid_fmu.rig.core import Effects, run_campaign
+    from solenoid_fmu.rig import Effects, run_campaign
 
     tables, maps_dir, _, shared = rig_maps
 

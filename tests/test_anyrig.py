@@ -19,7 +19,7 @@ from solenoid_fmu.loop.diagnose import ResidualCase, conditioned_position, diagn
 from solenoid_fmu.loop.improvement import _cases, _error, improve_tables, split_recordings
 from solenoid_fmu.loop.validate import full_scales, validate_cases
 from solenoid_fmu.measure.recordings import commutation_curve, flux_linkage, make_recording, read_recording
-from solenoid_fmu.rig.core import Effects, Excitation, TruthModel, measure
+from solenoid_fmu.rig import Effects, Excitation, TruthModel, measure
 from solenoid_fmu.rig.protocols import random_campaign
 
 #: What the loop must add for each truth effect (rig name -> model effect).

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.loop.diagnose import EFFECTS, ResidualCase, diagnose, score_effect
-from solenoid_fmu.realtime.hysteresis import PreisachHysteresis
+from solenoid_fmu.realtime import PreisachHysteresis
 
 RNG = np.random.default_rng(7)
 R_OHM = 12.0

@@ -47,7 +47,7 @@ def test_single_linear_eddy_term_recovered_within_5_percent(maps_dir, tmp_path, 
 
 
 def test_rate_dependent_eddy_is_reported(maps_dir, tmp_path):
-    from solenoid_fmu.rig.core import CampaignConfig, Effects, run_campaign
+    from solenoid_fmu.rig import CampaignConfig, Effects, run_campaign
 
     cfg = CampaignConfig(tests=("eddy",), eddy_rates_A_per_s=(12.5, 50.0, 125.0), eddy_cycles=1,
                          eddy_sample_rate_Hz=10000.0)
@@ -89,7 +89,7 @@ def test_other_kinds_are_refused(maps_dir, tmp_path):
 def test_rig_campaign_with_single_linear_term(tmp_path):
     """The virtual rig (current loop, interval-averaged samples, sensor noise and offsets) with
     the maps' single eddy term: the fit recovers it within 5 %."""
-    from solenoid_fmu.rig.core import CampaignConfig, Effects, run_campaign
+    from solenoid_fmu.rig import CampaignConfig, Effects, run_campaign
 
     mdir = mapsfixture.write_maps(tmp_path / "m", G_eddy_S=6e-3)
     cfg = CampaignConfig(tests=("eddy",), eddy_rates_A_per_s=(12.5, 50.0, 125.0), eddy_cycles=2,

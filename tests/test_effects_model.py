@@ -1,6 +1,6 @@
 """Effect sub-models of the real-time model (issue 7) against the virtual rig's own implementation.
 
-The rig (``solenoid_fmu.rig.core.TruthModel``) integrates the same physics with a different scheme
+The rig (``solenoid_fmu.rig.TruthModel``) integrates the same physics with a different scheme
 (full dense ROS2 over all states, sub-sampled, its own code), so agreement is a real check.
 """
 
@@ -12,7 +12,7 @@ from mapsfixture import write_maps
 
 from solenoid_fmu.realtime import model as m
 from solenoid_fmu.realtime.hysteresis import PlayHysteresis
-from solenoid_fmu.rig.core import CampaignConfig, EddyLadder, Effects, Excitation, Friction, Heating, TruthModel
+from solenoid_fmu.rig import CampaignConfig, EddyLadder, Effects, Excitation, Friction, Heating, TruthModel
 
 
 def _maps_with_effects(tmp_path, effects, G_eddy_S=0.0):
@@ -105,7 +105,7 @@ def test_play_operator_matches_hysteresis_module(tmp_path):
     ref = play.run(b)
     plays = [0.0, 0.0, 0.0]
     hy = m._effects_data(tab)["hysteresis"]
-    got = [m._play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], v) for v in b]
+    got = [m.play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], v) for v in b]
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
 
 

@@ -187,7 +187,7 @@ def _me_fx_reference(tab, mode, G, on, states, u, x, x0):
     ih = 0.0
     if "hysteresis" in on:
         hy = M._effects_data(tab)["hysteresis"]
-        ih = M._play_step([0.0] * len(hy["r"]), hy["r"], hy["w"], hy["gb"], hy["gg"], p)
+        ih = M.play_step([0.0] * len(hy["r"]), hy["r"], hy["w"], hy["gb"], hy["gg"], p)
     if "friction" in on and x != x0:
         target = math.copysign(EFFECTS["friction"]["force_N"], x - x0)
         force += target + (0.0 - target) * math.exp(-abs(x - x0) / EFFECTS["friction"]["presliding_m"])

@@ -1,4 +1,4 @@
-"""Tests of the virtual test rig (solenoid_fmu.rig.core) on the synthetic maps of tests/mapsfixture.py.
+"""Tests of the virtual test rig (solenoid_fmu.rig) on the synthetic maps of tests/mapsfixture.py.
 
 The truth's Psi(i) is known analytically (mapsfixture.psi_analytic), independent of the rig, so
 the flux test compares the recordings with an answer the rig did not produce.
@@ -17,7 +17,7 @@ import pytest
 from solenoid_fmu.cli import main
 from solenoid_fmu.measure.recordings import flux_linkage, read_recording
 from solenoid_fmu.realtime.model import load_tables
-from solenoid_fmu.rig.core import (
+from solenoid_fmu.rig import (
     CampaignConfig,
     DataAcquisition,
     EddyLadder,

@@ -75,7 +75,7 @@ def test_validate_cases_structure_and_simulated_is_measured_minus_residual():
 
 # -- FMU runs on small rig campaigns ------------------------------------------------------------------
 def _campaign():
-    from solenoid_fmu.rig.core import CampaignConfig
+    from solenoid_fmu.rig import CampaignConfig
 
     return CampaignConfig(
         tests=("flux", "force_stroke", "ramp", "eddy", "voltage_step"),
@@ -94,7 +94,7 @@ def setup(tmp_path_factory):
 
     from solenoid_fmu.fmu.export import build_fmu
     from solenoid_fmu.realtime.model import load_tables
-    from solenoid_fmu.rig.core import Effects, run_campaign
+    from solenoid_fmu.rig import Effects, run_campaign
 
     base = tmp_path_factory.mktemp("validate")
     maps_dir = mapsfixture.write_maps(base / "maps", G_eddy_S=0.02)

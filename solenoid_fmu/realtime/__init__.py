@@ -1,6 +1,7 @@
 """realtime: see the README's package map."""
 
-from .hysteresis import HysteresisError, PlayHysteresis, PreisachHysteresis, fit_play_to_series
+from .hysteresis import HysteresisError, PlayHysteresis
+from .hysteresis_fit import fit_play_to_series
 from .model import (
     COPPER_ALPHA_PER_K,
     MAPS_JSON,
@@ -14,6 +15,7 @@ from .model import (
     load_tables,
     read_maps_dir,
 )
+from .preisach import PreisachHysteresis
 
 __all__ = [
     "COPPER_ALPHA_PER_K",

@@ -1206,7 +1206,7 @@ class SolenoidModel:
                 i_sub = (u - (psi - psi_a) / hs) / R if voltage else u
                 T += hs * (R * i_sub * i_sub - T / Rth) / Cth
             if hy is not None:
-                ih = gain * _play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], psi)
+                ih = gain * play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], psi)
         i_f, d_end, force = _eval(hot, psi, j, w)
         self._end_cache = (math.nan, -1, math.nan, 0.0, 0.0)
         R = R0 * (1.0 + alpha * T) if heat else R0
@@ -1289,10 +1289,10 @@ def _effects_data(tables: MapTables) -> dict:
     return out
 
 
-def _play_step(plays: list, r: list, wts: list, gb: list, gg: list, b: float) -> float:
+def play_step(plays: list, r: list, wts: list, gb: list, gg: list, b: float) -> float:
     """Advance the play operators to input ``b`` (in place) and return ``g(b) sum w (b - p)``.
 
-    The inverse Prandtl-Ishlinskii operator of ``solenoid_fmu.hysteresis.PlayHysteresis``
+    The inverse Prandtl-Ishlinskii operator of ``solenoid_fmu.realtime.hysteresis.PlayHysteresis``
     (same arithmetic, scalar form, no numpy).
     """
     acc = 0.0

@@ -1,5 +1,39 @@
-"""rig: see the README's package map."""
+"""rig: the virtual test rig (a known truth runs the test campaign and writes recordings).
 
-from .core import CampaignConfig, Effects, run_campaign
+Modules: :mod:`.effects` (the truth's effects), :mod:`.excitation` (what the rig drives, the
+campaign), :mod:`.truth` (the truth model), :mod:`.daq` (sensors and converters),
+:mod:`.campaign` (running a campaign, ``truth.json``), :mod:`.protocols` (randomized campaigns
+of other rigs, for tests), :mod:`.cli` (``solenoid-fmu rig``).
+"""
 
-__all__ = ["CampaignConfig", "Effects", "run_campaign"]
+from .campaign import TRUTH_SCHEMA, RigTruth, read_truth, run_campaign, run_excitations
+from .daq import DataAcquisition, TruthResult, measure
+from .effects import EFFECT_NAMES, EddyLadder, Effects, Friction, Heating, HysteresisEffect
+from .errors import RigError
+from .excitation import CampaignConfig, Excitation, campaign_excitations
+from .protocols import random_campaign, random_protocol
+from .truth import TruthModel
+
+__all__ = [
+    "EFFECT_NAMES",
+    "TRUTH_SCHEMA",
+    "CampaignConfig",
+    "DataAcquisition",
+    "EddyLadder",
+    "Effects",
+    "Excitation",
+    "Friction",
+    "Heating",
+    "HysteresisEffect",
+    "RigError",
+    "RigTruth",
+    "TruthModel",
+    "TruthResult",
+    "campaign_excitations",
+    "measure",
+    "random_campaign",
+    "random_protocol",
+    "read_truth",
+    "run_campaign",
+    "run_excitations",
+]

@@ -37,7 +37,11 @@ from pathlib import Path
 import numpy as np
 
 from ..realtime import MapTables
-from .core import CampaignConfig, DataAcquisition, Effects, Excitation, RigError, RigTruth, run_excitations
+from .campaign import RigTruth, run_excitations
+from .daq import DataAcquisition
+from .effects import Effects
+from .errors import RigError
+from .excitation import CampaignConfig, Excitation
 
 __all__ = ["SHAPES", "random_campaign", "random_protocol"]
 
