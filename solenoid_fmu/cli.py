@@ -23,7 +23,7 @@ COMMAND_MODULES = (
     "rig.core",
     "identification.identify",
     "maps.eddy",
-    "fmu.export",
+    "fmu.cli",
     "loop.validate",
     "loop.diagnose",
     "loop.improvement",

@@ -19,8 +19,8 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
 from solenoid_fmu import cli
+from solenoid_fmu import fmu as F
 from solenoid_fmu.errors import FmuBuildError, FmuInputError, MapsError
-from solenoid_fmu.fmu import export as F
 from solenoid_fmu.realtime import model as M
 
 pytestmark = pytest.mark.fmu

@@ -19,7 +19,8 @@ from lxml import etree
 from test_fmu import OUTS, X_M, Instance, _measured, model_run, scenario
 
 from solenoid_fmu import cli
-from solenoid_fmu.fmu import export as F
+from solenoid_fmu import fmu as F
+from solenoid_fmu.fmu import c_sources
 from solenoid_fmu.fmu import native as fmu_c
 from solenoid_fmu.realtime import model as M
 
@@ -397,8 +398,8 @@ def test_build_refuses_a_model_with_states_the_c_code_lacks(maps_dir, tmp_path, 
     """When model.py gains effects (new states), the native export stops instead of exporting the old model."""
     from solenoid_fmu.errors import FmuBuildError
 
-    monkeypatch.setattr(M, "STATE_NAMES", (*M.STATE_NAMES, "hysteresis_state"))
-    monkeypatch.setattr(M, "STATE_LAYOUT", M.STATE_LAYOUT + 1)
+    monkeypatch.setattr(c_sources, "STATE_NAMES", (*M.STATE_NAMES, "hysteresis_state"))
+    monkeypatch.setattr(c_sources, "STATE_LAYOUT", M.STATE_LAYOUT + 1)
     with pytest.raises(FmuBuildError, match="Port the new effects"):
         F.build_fmu(maps_dir, tmp_path / "x.fmu", backend="c")
     assert not list(tmp_path.glob("*.fmu"))
