@@ -58,8 +58,8 @@ def _host_ns(host, fmu, tmp, n_host, runs, *extra):
 def main(argv: list[str]) -> int:
     import fmpy
 
-    from solenoid_fmu.fmu import native as fmu_c
     from solenoid_fmu.fmu import build_fmu
+    from solenoid_fmu.fmu import native as fmu_c
     from solenoid_fmu.realtime import model as M
 
     h = 1e-4
