@@ -106,6 +106,33 @@ def test_model_description_has_both_interfaces_and_the_same_variables(md, fmu_pa
     assert "Native FMU" in doc and "Python 3 interpreter" not in doc
 
 
+def test_cs_only_interface_has_no_direct_feedthrough(maps_dir, fmu_path, md, tmp_path, capsys):
+    """export --backend c --interface cs (issue 14): co-simulation only, no output depends on an input (FMI 2.0
+    has one ModelStructure; the ME dependencies made OMSimulator report algebraic loops in co-simulation);
+    fmpy validation is clean and the binary runs the same co-simulation as the cs+me FMU."""
+    from fmpy.validation import validate_fmu
+
+    from solenoid_fmu.errors import FmuBuildError
+
+    cs_path = tmp_path / "cs.fmu"
+    assert cli.main(["export", str(maps_dir), "-o", str(cs_path), "--backend", "c", "--interface", "cs"]) == 0
+    assert "interface cs" in capsys.readouterr().out
+    assert validate_fmu(str(cs_path)) == []
+    cs = fmpy.read_model_description(str(cs_path))
+    assert cs.modelExchange is None and cs.coSimulation.modelIdentifier == F.MODEL_IDENTIFIER
+    assert [v.name for v in cs.modelVariables] == [v.name for v in F.VARIABLES]
+    assert {u.variable.name for u in cs.outputs} == {v.name for v in F.VARIABLES if v.causality == "output"}
+    assert all(u.dependencies == [] for u in cs.outputs)
+    assert any(u.dependencies for u in md.outputs)  # the default cs+me FMU declares the ME dependencies
+    kw = dict(stop_time=0.02, output_interval=1e-3, start_values={"U_V": 24.0}, output=["psi_Wb", "F_N"],
+              fmi_type="CoSimulation")
+    got, ref = fmpy.simulate_fmu(str(cs_path), **kw), fmpy.simulate_fmu(str(fmu_path), **kw)
+    np.testing.assert_array_equal(got["psi_Wb"], ref["psi_Wb"])
+    np.testing.assert_array_equal(got["F_N"], ref["F_N"])
+    with pytest.raises(FmuBuildError, match="offers interface cs"):
+        F.build_fmu(maps_dir, tmp_path / "p.fmu", backend="python", interface="cs+me")
+
+
 def test_sources_build_with_cmake(unzipped, tmp_path):
     """The FMU's sources/ build a working binary with CMake alone (what another platform does)."""
     cmake = shutil.which("cmake")
