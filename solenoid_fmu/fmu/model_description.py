@@ -23,6 +23,8 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from lxml import etree
+
 from .. import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables
@@ -137,8 +139,6 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_dir, generat
     feedthrough; model exchange: Outputs and Derivatives with their dependencies; InitialUnknowns
     depending on the inputs and parameters). Also writes ``documentation/index.html``.
     """
-    from lxml import etree  # third-party, loaded only when an FMU is written
-
     backend = backend or BackendDescription()
     fmu_path = Path(fmu_path)
     maps_dir = Path(maps_dir)
@@ -227,8 +227,6 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_dir, generat
 
 def _write_variables(fmu_path: Path, variables, interface: tuple) -> None:
     """Complete the ScalarVariables of the interface (in place): attributes, unit, start value."""
-    from lxml import etree  # third-party, loaded only when an FMU is written
-
     scalars = list(variables) if variables is not None else []
     by_name = {sv.get("name"): sv for sv in scalars}
     if [sv.get("name") for sv in scalars] != [v.name for v in interface]:
@@ -272,8 +270,6 @@ def _write_variables(fmu_path: Path, variables, interface: tuple) -> None:
 
 def _write_locals(variables, n0: int, locals_: tuple) -> None:
     """Append the model-exchange locals (continuous states, then their derivatives) after the interface."""
-    from lxml import etree  # third-party, loaded only when an FMU is written
-
     nx = len(locals_) // 2
     for k, (name, unit, desc) in enumerate(locals_):
         sv = etree.SubElement(variables, "ScalarVariable", name=name, valueReference=str(n0 + k), description=desc,
@@ -288,8 +284,6 @@ def _write_locals(variables, n0: int, locals_: tuple) -> None:
 def _model_structure(tables: MapTables, interface: tuple, nx: int, model_exchange: bool):
     """``ModelStructure``: Outputs (no direct feedthrough in co-simulation; the model-exchange
     dependencies otherwise), Derivatives, InitialUnknowns (outputs and ME locals on every known)."""
-    from lxml import etree  # third-party, loaded only when an FMU is written
-
     index = {v.name: k + 1 for k, v in enumerate(interface)}
     knowns = " ".join(str(index[v.name]) for v in interface if v.causality in ("input", "parameter"))
     out_deps, der_deps = me_dependencies(tables) if model_exchange else ({}, ())

@@ -55,6 +55,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from lxml import etree
+
 from .. import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables
@@ -138,8 +140,6 @@ def _raw_model_description(guid: str, params: dict, tables: MapTables) -> bytes:
     :func:`solenoid_fmu.fmu.model_description.finalize_model_description` completes it (with
     :data:`NATIVE_DESCRIPTION`: model exchange too).
     """
-    from lxml import etree  # third-party, loaded only when an FMU is written
-
     root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName="solenoid", guid=guid,
                          numberOfEventIndicators="0")
     etree.SubElement(root, "CoSimulation", modelIdentifier=MODEL_IDENTIFIER)
