@@ -106,6 +106,25 @@ def test_model_description_has_both_interfaces_and_the_same_variables(md, fmu_pa
     assert "Native FMU" in doc and "Python 3 interpreter" not in doc
 
 
+def test_c_definitions_are_generated_from_model_py(unzipped):
+    """solenoid_model.h carries model.py's constants and state lists and the interface's value references, and
+    solenoid_maps.h a default for every model parameter: C and Python are equal by construction."""
+    import re
+
+    header = (Path(unzipped) / "sources" / "solenoid_model.h").read_text()
+    enums = [[item.split("=")[0].strip() for item in body.split(",") if item.strip()]
+             for body in re.findall(r"enum \{(.*?)\};", header, re.S)]
+    assert enums[0] == [f"ST_{n.upper()}" for n in M.STATE_NAMES] + ["N_STATE"]
+    assert enums[1] == [f"FX_{n.upper()}" for n in M.EFFECT_STATE_NAMES] + ["FX_LAD"]
+    assert enums[2] == [f"VR_{v.name.upper()}" for v in F.VARIABLES + F.EFFECT_VARIABLES]
+    for line in (f"#define ROS2_GAMMA {M.ROS2_GAMMA!r}", f"#define NEWTON_MAX_ITER {M.NEWTON_MAX_ITER}",
+                 f"#define STATE_LAYOUT {M.STATE_LAYOUT}", f"#define SOL_N_PARAMS {len(M.DEFAULT_PARAMS)}",
+                 f"#define DRIVE_CURRENT {M.DRIVE_CURRENT}", f"#define MAX_SUBSTEPS {M.MAX_SUBSTEPS!r}"):
+        assert line in header, line
+    maps_h = (Path(unzipped) / "sources" / "solenoid_maps.h").read_text()
+    assert all(f"SOL_{name.upper()}_DEFAULT" in maps_h for name in M.DEFAULT_PARAMS)
+
+
 def test_cs_only_interface_has_no_direct_feedthrough(maps_dir, fmu_path, md, tmp_path, capsys):
     """export --backend c --interface cs (issue 14): co-simulation only, no output depends on an input (FMI 2.0
     has one ModelStructure; the ME dependencies made OMSimulator report algebraic loops in co-simulation);
