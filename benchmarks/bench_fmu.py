@@ -79,7 +79,7 @@ def _block(fmu, n: int, t0: float, h: float, cycle=None) -> float:
 
 
 def main(argv: list[str]) -> int:
-    from solenoid_fmu.fmu.export import build_fmu
+    from solenoid_fmu.fmu import build_fmu
     from solenoid_fmu.realtime import model as M
 
     h = 1e-4

@@ -40,7 +40,7 @@ def _host_ns(host, fmu, tmp, n_host, runs, *extra):
     """Run tests/c/host.c on an FMU ``runs`` times; (ns per voltage cycle, ns per current G=0 cycle) lists."""
     import fmpy
 
-    from solenoid_fmu.fmu.export import MODEL_IDENTIFIER
+    from solenoid_fmu.fmu import MODEL_IDENTIFIER
 
     unzip = Path(fmpy.extract(str(fmu)))
     md = fmpy.read_model_description(str(fmu))
@@ -58,8 +58,8 @@ def _host_ns(host, fmu, tmp, n_host, runs, *extra):
 def main(argv: list[str]) -> int:
     import fmpy
 
+    from solenoid_fmu.fmu import build_fmu
     from solenoid_fmu.fmu import native as fmu_c
-    from solenoid_fmu.fmu.export import build_fmu
     from solenoid_fmu.realtime import model as M
 
     h = 1e-4

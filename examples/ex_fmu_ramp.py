@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solenoid_fmu.fmu.export import build_fmu
+from solenoid_fmu.fmu import build_fmu
 from solenoid_fmu.realtime.model import DRIVE_CURRENT, load_tables
 
 RATE_A_PER_S = 10.0

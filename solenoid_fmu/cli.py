@@ -22,7 +22,7 @@ COMMAND_MODULES = (
     "measure.recordings",
     "rig.cli",
     "identification.identify",
-    "fmu.export",
+    "fmu.cli",
     "loop.validate",
     "loop.diagnose",
     "loop.improvement",

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from solenoid_fmu.fmu.export import simulate_model
+from solenoid_fmu.fmu import simulate_model
 from solenoid_fmu.loop.diagnose import ResidualCase, conditioned_position, diagnose, residual_case
 from solenoid_fmu.loop.improvement import _cases, _error, improve_tables, split_recordings
 from solenoid_fmu.loop.validate import full_scales, validate_cases

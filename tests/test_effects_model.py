@@ -104,7 +104,7 @@ def test_play_operator_matches_hysteresis_module(tmp_path):
     b = np.cumsum(rng.normal(0, 0.01, 400))
     ref = play.run(b)
     plays = [0.0, 0.0, 0.0]
-    hy = m._effects_data(tab)["hysteresis"]
+    hy = m.effects_data(tab)["hysteresis"]
     got = [m.play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], v) for v in b]
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
 
@@ -148,7 +148,7 @@ def test_effect_state_round_trip_and_bad_effects(tmp_path):
 
 
 def test_an_effects_section_of_nulls_is_no_effect(tmp_path):
-    from solenoid_fmu.fmu.export import VARIABLES, interface_for
+    from solenoid_fmu.fmu import VARIABLES, interface_for
 
     tab = _maps_with_effects(tmp_path, {"friction": None, "heating": None})
     model = m.SolenoidModel(tab)

@@ -19,8 +19,8 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
 from solenoid_fmu import cli
+from solenoid_fmu import fmu as F
 from solenoid_fmu.errors import FmuBuildError, FmuInputError, MapsError
-from solenoid_fmu.fmu import export as F
 from solenoid_fmu.realtime import model as M
 
 pytestmark = pytest.mark.fmu
@@ -160,6 +160,28 @@ def test_model_description_is_complete(md, fmu_path, maps_dir):
     assert f'npz_sha256="{sha}"' in xml and "analytic-circuit" in xml
     assert "resources/maps.npz" in names_in_zip and "documentation/index.html" in names_in_zip
     assert not any(n.endswith((".pkl", ".pickle")) for n in names_in_zip)
+
+
+def test_the_slave_is_a_module_of_the_package(maps_dir, tab):
+    """fmu/slave.py, copied into every pythonfmu FMU, also runs in process with the package's model and
+    interface table: the interface's variables in order, and model.py's step."""
+    from solenoid_fmu.fmu.python_backend import slave_source
+    from solenoid_fmu.fmu.slave import SolenoidFmu
+
+    slave = SolenoidFmu(instance_name="in-process", resources=str(maps_dir))
+    names = [v.name for v in F.VARIABLES]
+    assert [v.name for v in slave.vars.values()] == names
+    slave.setup_experiment(0.0)
+    slave.U_V, slave.x_m = 24.0, X_M
+    slave.exit_initialization_mode()
+    assert slave.do_step(0.0, 1e-3) is True
+    model = M.SolenoidModel(tab)
+    model.initialize(24.0, X_M, 0.0)
+    model.step(1e-3, 24.0, X_M, 0.0)
+    assert slave.get_real([names.index("psi_Wb"), names.index("F_N")]) == [model.psi_Wb, model.F_N]
+    packed = slave_source("solenoid_model_0")  # the FMU's copy: the model beside it, the table as literals
+    assert "from solenoid_model_0 import " in packed and "from .interface" not in packed
+    assert "from ..realtime" not in packed and "class SolenoidFmu(Fmi2Slave):" in packed
 
 
 # -- agreement with model.py -----------------------------------------------------------------------

@@ -19,7 +19,8 @@ from lxml import etree
 from test_fmu import OUTS, X_M, Instance, _measured, model_run, scenario
 
 from solenoid_fmu import cli
-from solenoid_fmu.fmu import export as F
+from solenoid_fmu import fmu as F
+from solenoid_fmu.fmu import c_sources
 from solenoid_fmu.fmu import native as fmu_c
 from solenoid_fmu.realtime import model as M
 
@@ -103,6 +104,52 @@ def test_model_description_has_both_interfaces_and_the_same_variables(md, fmu_pa
         assert [f.get("name") for f in root.find(tag).find("SourceFiles")] == ["solenoid_fmu.c"]
     assert "c backend" in root.get("generationTool")
     assert "Native FMU" in doc and "Python 3 interpreter" not in doc
+
+
+def test_c_definitions_are_generated_from_model_py(unzipped):
+    """solenoid_model.h carries model.py's constants and state lists and the interface's value references, and
+    solenoid_maps.h a default for every model parameter: C and Python are equal by construction."""
+    import re
+
+    header = (Path(unzipped) / "sources" / "solenoid_model.h").read_text()
+    enums = [[item.split("=")[0].strip() for item in body.split(",") if item.strip()]
+             for body in re.findall(r"enum \{(.*?)\};", header, re.S)]
+    assert enums[0] == [f"ST_{n.upper()}" for n in M.STATE_NAMES] + ["N_STATE"]
+    assert enums[1] == [f"FX_{n.upper()}" for n in M.EFFECT_STATE_NAMES] + ["FX_LAD"]
+    assert enums[2] == [f"VR_{v.name.upper()}" for v in F.VARIABLES + F.EFFECT_VARIABLES]
+    for line in (f"#define ROS2_GAMMA {M.ROS2_GAMMA!r}", f"#define NEWTON_MAX_ITER {M.NEWTON_MAX_ITER}",
+                 f"#define STATE_LAYOUT {M.STATE_LAYOUT}", f"#define SOL_N_PARAMS {len(M.DEFAULT_PARAMS)}",
+                 f"#define DRIVE_CURRENT {M.DRIVE_CURRENT}", f"#define MAX_SUBSTEPS {M.MAX_SUBSTEPS!r}"):
+        assert line in header, line
+    maps_h = (Path(unzipped) / "sources" / "solenoid_maps.h").read_text()
+    assert all(f"SOL_{name.upper()}_DEFAULT" in maps_h for name in M.DEFAULT_PARAMS)
+
+
+def test_cs_only_interface_has_no_direct_feedthrough(maps_dir, fmu_path, md, tmp_path, capsys):
+    """export --backend c --interface cs (issue 14): co-simulation only, no output depends on an input (FMI 2.0
+    has one ModelStructure; the ME dependencies made OMSimulator report algebraic loops in co-simulation);
+    fmpy validation is clean and the binary runs the same co-simulation as the cs+me FMU."""
+    from fmpy.validation import validate_fmu
+
+    from solenoid_fmu.errors import FmuBuildError
+
+    cs_path = tmp_path / "cs.fmu"
+    assert cli.main(["export", str(maps_dir), "-o", str(cs_path), "--backend", "c", "--interface", "cs"]) == 0
+    assert "interface cs" in capsys.readouterr().out
+    assert validate_fmu(str(cs_path)) == []
+    cs = fmpy.read_model_description(str(cs_path))
+    assert cs.modelExchange is None and cs.coSimulation.modelIdentifier == F.MODEL_IDENTIFIER
+    assert [v.name for v in cs.modelVariables] == [v.name for v in F.VARIABLES]
+    assert {u.variable.name for u in cs.outputs} == {v.name for v in F.VARIABLES if v.causality == "output"}
+    assert all(u.dependencies == [] for u in cs.outputs)
+    assert any(u.dependencies for u in md.outputs)  # the default cs+me FMU declares the ME dependencies
+    kw = dict(stop_time=0.02, output_interval=1e-3, start_values={"U_V": 24.0}, output=["psi_Wb", "F_N"],
+              fmi_type="CoSimulation")
+    got, ref = fmpy.simulate_fmu(str(cs_path), **kw), fmpy.simulate_fmu(str(fmu_path), **kw)
+    np.testing.assert_array_equal(got["psi_Wb"], ref["psi_Wb"])
+    np.testing.assert_array_equal(got["F_N"], ref["F_N"])
+    with pytest.raises(FmuBuildError, match="offers interface cs"):
+        F.build_fmu(maps_dir, tmp_path / "p.fmu", backend="python", interface="cs+me")
 
 
 def test_sources_build_with_cmake(unzipped, tmp_path):
@@ -397,8 +444,8 @@ def test_build_refuses_a_model_with_states_the_c_code_lacks(maps_dir, tmp_path, 
     """When model.py gains effects (new states), the native export stops instead of exporting the old model."""
     from solenoid_fmu.errors import FmuBuildError
 
-    monkeypatch.setattr(M, "STATE_NAMES", (*M.STATE_NAMES, "hysteresis_state"))
-    monkeypatch.setattr(M, "STATE_LAYOUT", M.STATE_LAYOUT + 1)
+    monkeypatch.setattr(c_sources, "STATE_NAMES", (*M.STATE_NAMES, "hysteresis_state"))
+    monkeypatch.setattr(c_sources, "STATE_LAYOUT", M.STATE_LAYOUT + 1)
     with pytest.raises(FmuBuildError, match="Port the new effects"):
         F.build_fmu(maps_dir, tmp_path / "x.fmu", backend="c")
     assert not list(tmp_path.glob("*.fmu"))

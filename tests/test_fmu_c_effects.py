@@ -23,8 +23,9 @@ from fmpy.fmi1 import FMICallException
 from test_fmu import Instance, _measured
 from test_fmu_c import HOST_C, MeInstance, _rel_err, _run_host
 
-from solenoid_fmu.fmu import export as F
+from solenoid_fmu import fmu as F
 from solenoid_fmu.fmu import native as fmu_c
+from solenoid_fmu.fmu.interface import me_variables
 from solenoid_fmu.realtime import model as M
 
 pytestmark = pytest.mark.fmu
@@ -186,7 +187,7 @@ def _me_fx_reference(tab, mode, G, on, states, u, x, x0):
     sik = sum(ik[:nl])
     ih = 0.0
     if "hysteresis" in on:
-        hy = M._effects_data(tab)["hysteresis"]
+        hy = M.effects_data(tab)["hysteresis"]
         ih = M.play_step([0.0] * len(hy["r"]), hy["r"], hy["w"], hy["gb"], hy["gg"], p)
     if "friction" in on and x != x0:
         target = math.copysign(EFFECTS["friction"]["force_N"], x - x0)
@@ -295,7 +296,7 @@ def test_interface_and_description_with_effects(fx_md, fx_fmu, fx_tab):
     names = [v.name for v in fx_md.modelVariables]
     iface = F.interface_for(fx_tab)
     assert names[:len(iface)] == [v.name for v in iface]
-    assert names[len(iface):] == [n for n, _, _ in fmu_c.me_variables(fx_tab)]
+    assert names[len(iface):] == [n for n, _, _ in me_variables(fx_tab)]
     assert [d.variable.name for d in fx_md.derivatives] == ["der(psi_state_Wb)", "der(ladder_state_0_A)",
                                                              "der(ladder_state_1_A)", "der(T_state_K)"]
     by = {v.name: v for v in fx_md.modelVariables}

@@ -10,7 +10,7 @@ import mapsfixture
 import numpy as np
 import pytest
 
-from solenoid_fmu.fmu.export import build_fmu, simulate_recording
+from solenoid_fmu.fmu import build_fmu, simulate_recording
 from solenoid_fmu.measure.recordings import make_recording, write_recording
 from solenoid_fmu.realtime.model import MAX_SUBSTEPS, ModelInputError, SolenoidModel, load_tables
 

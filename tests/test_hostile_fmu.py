@@ -15,8 +15,7 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.errors import FmuBuildError, MapsError
-from solenoid_fmu.fmu import native as fmu_c
-from solenoid_fmu.fmu.export import build_fmu
+from solenoid_fmu.fmu import build_fmu, c_sources
 from solenoid_fmu.measure.recordings import make_recording, write_recording
 from solenoid_fmu.realtime.model import load_tables
 
@@ -96,21 +95,21 @@ def test_a_non_finite_table_value_never_reaches_generated_c(maps_dir, tmp_path):
     coef.ravel()[13] = np.inf
     tab.tables = lambda: dict(real, i_f_coef=coef)  # as if the maps' cubics had overflowed
     with pytest.raises(FmuBuildError, match=r"i_f cell cubics\[13\] = inf is not finite \(1 such value"):
-        fmu_c.generate_sources(tab, tmp_path / "src")
+        c_sources.generate_sources(tab, tmp_path / "src")
     assert not (tmp_path / "src" / "solenoid_maps.h").exists()
     eff = load_tables(maps_dir)
     eff.meta["effects"] = {"hysteresis": {"thresholds": [1e-4], "weights": [2.0],
                                           "shape": {"b_nodes": [0.0, 0.1], "g_nodes": [1.0, float("nan")]}}}
     with pytest.raises(FmuBuildError, match=r"effects\.hysteresis: finite thresholds"):  # model.py's check
-        fmu_c.generate_sources(eff, tmp_path / "src2")
+        c_sources.generate_sources(eff, tmp_path / "src2")
     with pytest.raises(FmuBuildError, match="not finite"):
-        fmu_c._c_double(float("-inf"))  # no HUGE_VAL fallback any more
-    assert fmu_c._c_double(0.1) == "0.1" and float(fmu_c._c_double(1 / 3)) == 1 / 3
+        c_sources._c_double(float("-inf"))  # no HUGE_VAL fallback any more
+    assert c_sources._c_double(0.1) == "0.1" and float(c_sources._c_double(1 / 3)) == 1 / 3
 
 
 # -- fmpy's one logger slot --------------------------------------------------------------------------
 _LOGGER = """
-from solenoid_fmu.fmu.export import simulate_recording
+from solenoid_fmu.fmu import simulate_recording
 simulate_recording(fmu, sys.argv[2])  # its logger callback must outlive it
 gc.collect()
 s, vr = slave(fmu, drive_mode=2, G_eddy_S=1e308, i_A=1.0, x_m=1.5e-3)
@@ -133,7 +132,7 @@ def test_fmi2_callbacks_route_each_instance_to_its_own_log(native):
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from solenoid_fmu.fmu.export import _LOG_SINKS, fmi2_callbacks, release_fmi2_callbacks
+    from solenoid_fmu.fmu.callbacks import _LOG_SINKS, fmi2_callbacks, release_fmi2_callbacks
 
     md = read_model_description(str(native))
     vr = {v.name: v.valueReference for v in md.modelVariables}

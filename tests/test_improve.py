@@ -72,7 +72,7 @@ def test_cli_improve_builds_a_switchable_fmu_and_reports_before_after(rig_maps, 
     import fmpy.validation
 
     from solenoid_fmu.cli import main
-    from solenoid_fmu.fmu.export import simulate_recording
+    from solenoid_fmu.fmu import simulate_recording
 
     fmu = rig_maps[2]
     files = rig_campaign("hysteresis,friction")

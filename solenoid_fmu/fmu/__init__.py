@@ -1,5 +1,27 @@
-"""fmu: see the README's package map."""
+"""fmu: see the README's package map.
 
-from .export import build_fmu, simulate_model, simulate_recording
+``interface`` (the one variable table) -> ``python_backend`` (+ ``slave``, packed into the FMU) and
+``native`` (+ ``c_sources``, ``c/solenoid_fmu.c``) -> ``model_description`` -> ``export``
+(``build_fmu``); ``simulate`` runs an FMU (fmpy, ``callbacks``) or the model on a recording; ``cli``.
+"""
 
-__all__ = ["build_fmu", "simulate_model", "simulate_recording"]
+from .callbacks import fmi2_callbacks, release_fmi2_callbacks
+from .export import BACKENDS, build_fmu
+from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES, FmuVariable, interface_for
+from .simulate import DRIVE_BY_KIND, SimulationResult, simulate_model, simulate_recording
+
+__all__ = [
+    "BACKENDS",
+    "DRIVE_BY_KIND",
+    "EFFECT_VARIABLES",
+    "MODEL_IDENTIFIER",
+    "VARIABLES",
+    "FmuVariable",
+    "SimulationResult",
+    "build_fmu",
+    "fmi2_callbacks",
+    "interface_for",
+    "release_fmi2_callbacks",
+    "simulate_model",
+    "simulate_recording",
+]

@@ -1,36 +1,48 @@
-"""realtime: see the README's package map."""
+"""realtime: the real-time model (paper eqs. 1-3 and the effect sub-models) and the hysteresis operators.
+
+``model.py`` is the FMU payload: numpy only, it imports nothing from the package and is copied into
+every pythonfmu FMU whole (:data:`MODEL_SOURCE`); its definitions generate the native FMU's C header.
+"""
+
+from pathlib import Path
 
 from .hysteresis import HysteresisError, PlayHysteresis
 from .hysteresis_fit import fit_play_to_series
 from .model import (
     COPPER_ALPHA_PER_K,
+    DEFAULT_PARAMS,
+    DRIVE_CURRENT,
+    DRIVE_VOLTAGE,
+    EFFECT_NAMES,
+    EFFECT_STATE_NAMES,
     MAPS_JSON,
     MAPS_NPZ,
     MAPS_SCHEMA,
     MAPS_SCHEMA_VERSION,
+    MAX_SUBSTEPS,
+    NEWTON_MAX_ITER,
+    NEWTON_TOL_REL,
     ROS2_GAMMA,
+    STATE_LAYOUT,
+    STATE_NAMES,
     MapTables,
     ModelError,
+    ModelInputError,
     ModelMapsError,
+    SolenoidModel,
+    effects_data,
     load_tables,
     read_maps_dir,
 )
 from .preisach import PreisachHysteresis
 
+#: The real-time model's source file: copied whole into every pythonfmu FMU (it imports only numpy).
+MODEL_SOURCE = Path(__file__).with_name("model.py")
+
 __all__ = [
-    "COPPER_ALPHA_PER_K",
-    "HysteresisError",
-    "MAPS_JSON",
-    "MAPS_NPZ",
-    "MAPS_SCHEMA",
-    "MAPS_SCHEMA_VERSION",
-    "MapTables",
-    "ModelError",
-    "ModelMapsError",
-    "PlayHysteresis",
-    "PreisachHysteresis",
-    "ROS2_GAMMA",
-    "fit_play_to_series",
-    "load_tables",
-    "read_maps_dir",
+    "COPPER_ALPHA_PER_K", "DEFAULT_PARAMS", "DRIVE_CURRENT", "DRIVE_VOLTAGE", "EFFECT_NAMES", "EFFECT_STATE_NAMES",
+    "HysteresisError", "MAPS_JSON", "MAPS_NPZ", "MAPS_SCHEMA", "MAPS_SCHEMA_VERSION", "MAX_SUBSTEPS", "MODEL_SOURCE",
+    "MapTables", "ModelError", "ModelInputError", "ModelMapsError", "NEWTON_MAX_ITER", "NEWTON_TOL_REL",
+    "PlayHysteresis", "PreisachHysteresis", "ROS2_GAMMA", "STATE_LAYOUT", "STATE_NAMES", "SolenoidModel",
+    "effects_data", "fit_play_to_series", "load_tables", "read_maps_dir",
 ]

@@ -106,20 +106,27 @@ import zipfile
 import numpy as np
 
 __all__ = [
+    "COPPER_ALPHA_PER_K",
     "DEFAULT_PARAMS",
     "DRIVE_CURRENT",
-    "EFFECT_NAMES",
     "DRIVE_VOLTAGE",
+    "EFFECT_NAMES",
+    "EFFECT_STATE_NAMES",
     "MAPS_SCHEMA",
     "MAPS_SCHEMA_VERSION",
+    "MAX_SUBSTEPS",
     "MapTables",
     "ModelError",
     "ModelInputError",
     "ModelMapsError",
+    "NEWTON_MAX_ITER",
+    "NEWTON_TOL_REL",
+    "ROS2_GAMMA",
     "SolenoidModel",
     "STATE_LAYOUT",
     "STATE_NAMES",
     "cell_coefficients",
+    "effects_data",
     "load_tables",
     "pchip_scaled_slopes",
     "MAPS_JSON",
@@ -769,7 +776,7 @@ class SolenoidModel:
         self._end_cache = (math.nan, -1, math.nan, 0.0, 0.0)
         self._state = [0.0] * len(STATE_NAMES)
         self._state[0] = float(STATE_LAYOUT)
-        self._fx_data = _effects_data(tables)
+        self._fx_data = effects_data(tables)
         self._fx_on = False
         n_lad = len((self._fx_data.get("eddy_ladder") or {}).get("G_S", ()))
         n_play = len((self._fx_data.get("hysteresis") or {}).get("thresholds", ()))
@@ -1239,7 +1246,7 @@ class SolenoidModel:
         self._fx = fx
 
 
-def _effects_data(tables: MapTables) -> dict:
+def effects_data(tables: MapTables) -> dict:
     """The ``effects`` section of maps.json, checked and prepared for the step (SI units).
 
     Keys (each optional): ``hysteresis`` {thresholds [Wb], weights [A/Wb], shape {b_nodes [Wb],

@@ -1,7 +1,7 @@
 /*
  * solenoid-fmu native FMU: FMI 2.0 co-simulation and model exchange in one binary.
  *
- * The real-time lumped solenoid model of solenoid_fmu/model.py (paper eqs. 1-3, SI units):
+ * The real-time lumped solenoid model of solenoid_fmu/realtime/model.py (paper eqs. 1-3, SI units):
  *
  *     U = R i + dPsi/dt                               paper eq. (1)
  *     i = i_f(Psi, x) + G dPsi/dt                     paper eq. (2), G = G_eddy [S]
@@ -38,42 +38,30 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "solenoid_model.h"
 #include "solenoid_maps.h"
 
-/* ---- model.py constants ------------------------------------------------------------------- */
-#define ROS2_GAMMA (1.0 + 1.0 / sqrt(2.0))
-#define NEWTON_MAX_ITER 60
-#define NEWTON_TOL_REL 1e-12
-#define DRIVE_VOLTAGE 1
-#define DRIVE_CURRENT 2
-/* Bound of the work of one fmi2DoStep: ceil(h / h_sub_max_s) sub-steps at most (else fmi2Error). */
-#define MAX_SUBSTEPS 10000000.0
+/* What this file implements. solenoid_model.h is generated from model.py (constants, enum ST_* of
+ * STATE_NAMES, enum FX_* of EFFECT_STATE_NAMES, enum VR_* of the interface table): when model.py has
+ * moved on (new states, parameters or effects), solenoid_fmu.fmu.c_sources.check_implemented refuses to
+ * build, and so does the compiler. Port the new effects here (struct Core, sol_step), then update these. */
+#define IMPLEMENTS_STATE_LAYOUT 1
+#define IMPLEMENTS_N_PARAMS 15
+#define IMPLEMENTS_N_EFFECTS 4
+#define IMPLEMENTS_N_EFFECT_STATES 4
+#if STATE_LAYOUT != IMPLEMENTS_STATE_LAYOUT || SOL_N_PARAMS != IMPLEMENTS_N_PARAMS \
+    || SOL_N_EFFECTS != IMPLEMENTS_N_EFFECTS || SOL_N_EFFECT_STATES != IMPLEMENTS_N_EFFECT_STATES
+#error "solenoid_model.h (model.py) has states, parameters or effects this file lacks: port the new effects"
+#endif
 
-/* The state vector of model.py (STATE_NAMES, STATE_LAYOUT = 1). */
-#define STATE_LAYOUT 1.0
-enum {
-    ST_LAYOUT, ST_TIME, ST_PSI, ST_INIT, ST_EXC_PSI, ST_EXC_X, ST_EXC_EXT,
-    ST_I, ST_U, ST_F, ST_DPSI, ST_IEDDY,
-    /* new effects append their states here */
-    N_STATE
-};
-
-/* Effect states (model.py EFFECT_STATE_NAMES, then ladder_k, then play_k), kept in Core.fx. */
-enum { FX_T, FX_FFR, FX_XPREV, FX_IH, FX_LAD };
 #define FX_PLAY (FX_LAD + SOL_N_LAD)
 #define N_FX (FX_PLAY + SOL_N_PLAY)
 #define LAD_ALLOC (SOL_N_LAD > 0 ? SOL_N_LAD : 1)
 #define PLAY_ALLOC (SOL_N_PLAY > 0 ? SOL_N_PLAY : 1)
 
-/* Value references (= positions in solenoid_fmu.fmu.interface_for(tables): VARIABLES, then
- * EFFECT_VARIABLES when the maps carry effects; then the model-exchange locals). */
-enum {
-    VR_U = 0, VR_I, VR_X, VR_I_OUT, VR_U_OUT, VR_F, VR_PSI, VR_DPSI, VR_IEDDY, VR_OOM,
-    VR_R, VR_G, VR_DRIVE, VR_PSI0, VR_HSUB,
-    VR_IHYST, VR_TRISE, VR_HYST_ON, VR_HYST_GAIN, VR_LAD_ON, VR_HEAT_ON, VR_CTH, VR_RTH, VR_ALPHA,
-    VR_FRIC_ON, VR_FRIC_N, VR_PRESL
-};
-#define N_VR_IFACE (SOL_HAS_FX ? VR_PRESL + 1 : VR_HSUB + 1)
+/* Value references: enum VR_* of solenoid_model.h (positions in solenoid_fmu.fmu.interface.interface_for:
+ * VARIABLES, then EFFECT_VARIABLES when the maps carry effects); then the model-exchange locals. */
+#define N_VR_IFACE (SOL_HAS_FX ? SOL_N_VR_FX : SOL_N_VR)
 #define VR_PSI_STATE ((fmi2ValueReference)N_VR_IFACE)
 /* Model exchange continuous states: Psi, the eddy-ladder currents, the temperature rise. */
 #define ME_LAD 1
@@ -269,11 +257,11 @@ static double ros2(double psi, double v, double d, double m, double b, double c,
 static void set_flag(Inst *in, double *s, int k, int on, double i_f, double x_m, double t_s)
 {
     if (on && s[k] == 0.0) {
-        if (k == ST_EXC_X)
+        if (k == ST_EXCURSION_X)
             say(in, fmi2Warning, "t = %.9g s: x_m = %.6g m is outside the map's gap range [%.6g, %.6g] m; the "
                 "lookups use the nearest edge until x returns into the range", t_s, x_m, SOL_X[0],
                 SOL_X[SOL_N_X - 1]);
-        else if (k == ST_EXC_PSI)
+        else if (k == ST_EXCURSION_PSI)
             say(in, fmi2Warning, "t = %.9g s: |Psi| reached the map limit psi_max = %.6g Wb (coil current "
                 "beyond the maps' range); Psi is held at the limit until the drive lets it return", t_s,
                 SOL_PSI_MAX);
@@ -288,9 +276,9 @@ static void finish(Inst *in, double *s, int pc, double i_f, double x_m, int xc, 
 {
     const double lim = SOL_I_FEM_MAX * (1.0 + 1e-9);
     int ext = (!pc) && (i_f > lim || -i_f > lim);
-    if (xc != (s[ST_EXC_X] != 0.0)) set_flag(in, s, ST_EXC_X, xc, i_f, x_m, t_s);
-    if (pc != (s[ST_EXC_PSI] != 0.0)) set_flag(in, s, ST_EXC_PSI, pc, i_f, x_m, t_s);
-    if (ext != (s[ST_EXC_EXT] != 0.0)) set_flag(in, s, ST_EXC_EXT, ext, i_f, x_m, t_s);
+    if (xc != (s[ST_EXCURSION_X] != 0.0)) set_flag(in, s, ST_EXCURSION_X, xc, i_f, x_m, t_s);
+    if (pc != (s[ST_EXCURSION_PSI] != 0.0)) set_flag(in, s, ST_EXCURSION_PSI, pc, i_f, x_m, t_s);
+    if (ext != (s[ST_EXCURSION_EXTRAPOLATED] != 0.0)) set_flag(in, s, ST_EXCURSION_EXTRAPOLATED, ext, i_f, x_m, t_s);
 }
 
 /* ---- parameters ----------------------------------------------------------------------------- */
@@ -394,7 +382,7 @@ static int initialize(Inst *in)
     R = c->R;
     G = c->G;
     memset(s, 0, sizeof s);
-    s[ST_LAYOUT] = STATE_LAYOUT;
+    s[ST_STATE_LAYOUT] = STATE_LAYOUT;
     x_cell(c->x_m, &j, &w, &xc);
     if (!c->voltage && G == 0.0) {
         psi = solve_psi(u, j, w, 0.0, &pc);
@@ -406,25 +394,25 @@ static int initialize(Inst *in)
     eval3(psi, j, w, &i_f, &dsl, &force);
     if (c->voltage) {
         dpsi = (u - R * i_f) / (1.0 + R * G);
-        s[ST_I] = i_f + G * dpsi;
-        s[ST_U] = u;
+        s[ST_OUT_I_A] = i_f + G * dpsi;
+        s[ST_OUT_U_V] = u;
     } else {
         dpsi = G > 0.0 ? (u - i_f) / G : 0.0;
-        s[ST_I] = u;
-        s[ST_U] = R * u + dpsi;
+        s[ST_OUT_I_A] = u;
+        s[ST_OUT_U_V] = R * u + dpsi;
     }
-    s[ST_TIME] = c->t0_s;
-    s[ST_PSI] = psi;
-    s[ST_INIT] = 1.0;
-    s[ST_F] = force;
-    s[ST_DPSI] = dpsi;
-    s[ST_IEDDY] = G * dpsi;
+    s[ST_TIME_S] = c->t0_s;
+    s[ST_PSI_WB] = psi;
+    s[ST_INITIALIZED] = 1.0;
+    s[ST_OUT_F_N] = force;
+    s[ST_OUT_DPSI_DT_V] = dpsi;
+    s[ST_OUT_I_EDDY_A] = G * dpsi;
     finish(in, s, pc, i_f, c->x_m, xc, c->t0_s);
     memcpy(c->s, s, sizeof s);
     {
         int k;
         for (k = 0; k < N_FX; k++) c->fx[k] = 0.0;
-        c->fx[FX_XPREV] = c->x_m;
+        c->fx[FX_X_PREV_M] = c->x_m;
         for (k = FX_PLAY; k < N_FX; k++) c->fx[k] = psi;   /* plays neutral at the start flux */
     }
     c->me_time_s = c->t0_s;
@@ -442,7 +430,7 @@ static void sol_step(Inst *in, double t_s, double h)
     Core *c = &in->core;
     double *s = c->s;
     const double u = c->voltage ? c->u_V : c->i_A, x = c->x_m, m = c->m, R = c->R, G = c->G;
-    double psi0 = s[ST_PSI], psi, i_f, d_end, force, dpsi, w;
+    double psi0 = s[ST_PSI_WB], psi, i_f, d_end, force, dpsi, w;
     int j, xc, pc;
     x_cell(x, &j, &w, &xc);
     if (m == 0.0) {
@@ -456,18 +444,18 @@ static void sol_step(Inst *in, double t_s, double h)
     eval3(psi, j, w, &i_f, &d_end, &force);
     if (c->voltage) {
         dpsi = (u - R * i_f) / m;
-        s[ST_I] = i_f + G * dpsi;
-        s[ST_U] = u;
+        s[ST_OUT_I_A] = i_f + G * dpsi;
+        s[ST_OUT_U_V] = u;
     } else {
         dpsi = (psi - psi0) / h;
-        s[ST_I] = u;
-        s[ST_U] = R * u + dpsi;
+        s[ST_OUT_I_A] = u;
+        s[ST_OUT_U_V] = R * u + dpsi;
     }
-    s[ST_TIME] = t_s + h;
-    s[ST_PSI] = psi;
-    s[ST_F] = force;
-    s[ST_DPSI] = dpsi;
-    s[ST_IEDDY] = G * dpsi;
+    s[ST_TIME_S] = t_s + h;
+    s[ST_PSI_WB] = psi;
+    s[ST_OUT_F_N] = force;
+    s[ST_OUT_DPSI_DT_V] = dpsi;
+    s[ST_OUT_I_EDDY_A] = G * dpsi;
     finish(in, s, pc, i_f, x, xc, t_s + h);
 }
 
@@ -516,7 +504,7 @@ static void sol_step_fx(Inst *in, double t_s, double h)
     const double u = voltage ? c->u_V : c->i_A, x = c->x_m, R0 = c->R, G0 = c->G;
     const double alpha = c->alpha, Cth = c->Cth, Rth = c->Rth, gain = c->gain, pm = SOL_PSI_MAX;
     double ik[LAD_ALLOC], a[LAD_ALLOC], z[LAD_ALLOC], i2[LAD_ALLOC], r[LAD_ALLOC], q[LAD_ALLOC];
-    double T = fx[FX_T], ih = fx[FX_IH], psi0 = s[ST_PSI], psi = psi0, hs, gh, nd, w, R, sik, i_f, d_end, force;
+    double T = fx[FX_T_RISE_K], ih = fx[FX_I_HYST_A], psi0 = s[ST_PSI_WB], psi = psi0, hs, gh, nd, w, R, sik, i_f, d_end, force;
     double dpsi, ffr;
     long n, sub;
     int j, xc, pc = 0, k;
@@ -576,30 +564,30 @@ static void sol_step_fx(Inst *in, double t_s, double h)
     for (k = 0; k < nl; k++) sik += ik[k];
     if (voltage) {
         dpsi = (u - R * (i_f + ih + sik)) / (1.0 + R * G0);
-        s[ST_I] = i_f + ih + G0 * dpsi + sik;
-        s[ST_U] = u;
+        s[ST_OUT_I_A] = i_f + ih + G0 * dpsi + sik;
+        s[ST_OUT_U_V] = u;
     } else {
         dpsi = (psi - psi0) / h;
-        s[ST_I] = u;
-        s[ST_U] = R * u + dpsi;
+        s[ST_OUT_I_A] = u;
+        s[ST_OUT_U_V] = R * u + dpsi;
     }
-    ffr = fx[FX_FFR];
+    ffr = fx[FX_F_FRICTION_N];
     if (c->fric_on) {
-        double dx = x - fx[FX_XPREV];
+        double dx = x - fx[FX_X_PREV_M];
         if (dx != 0.0) {
             double target = dx > 0.0 ? c->fricN : -c->fricN;
             ffr = target + (ffr - target) * exp(-fabs(dx) / c->presl);
         }
     }
-    s[ST_TIME] = t_s + h;
-    s[ST_PSI] = psi;
-    s[ST_F] = force + ffr;
-    s[ST_DPSI] = dpsi;
-    s[ST_IEDDY] = G0 * dpsi + sik;
-    fx[FX_T] = T;
-    fx[FX_FFR] = ffr;
-    fx[FX_XPREV] = x;
-    fx[FX_IH] = ih;
+    s[ST_TIME_S] = t_s + h;
+    s[ST_PSI_WB] = psi;
+    s[ST_OUT_F_N] = force + ffr;
+    s[ST_OUT_DPSI_DT_V] = dpsi;
+    s[ST_OUT_I_EDDY_A] = G0 * dpsi + sik;
+    fx[FX_T_RISE_K] = T;
+    fx[FX_F_FRICTION_N] = ffr;
+    fx[FX_X_PREV_M] = x;
+    fx[FX_I_HYST_A] = ih;
     for (k = 0; k < nl; k++) fx[FX_LAD + k] = ik[k];
     finish(in, s, pc, i_f, x, xc, t_s + h);
 }
@@ -622,7 +610,7 @@ static void me_eval(const Core *c, MeOut *o)
 {
     const double u = c->voltage ? c->u_V : c->i_A, G = c->G, pm = SOL_PSI_MAX;
     const int nl = c->lad_on ? SOL_N_LAD : 0;
-    double psi = c->me_psi_Wb, i_f, d, f, w, sik = 0.0, ih = c->fx[FX_IH], T = c->heat_on ? c->me_T : 0.0, R;
+    double psi = c->me_psi_Wb, i_f, d, f, w, sik = 0.0, ih = c->fx[FX_I_HYST_A], T = c->heat_on ? c->me_T : 0.0, R;
     int j, k;
     R = c->heat_on ? c->R * (1.0 + c->alpha * T) : c->R;
     for (k = 0; k < NX; k++) o->der[k] = 0.0;
@@ -659,10 +647,10 @@ static void me_eval(const Core *c, MeOut *o)
     for (k = 0; k < nl; k++) o->der[ME_LAD + k] = (SOL_LAD_G[k] * o->dpsi - c->me_lad[k]) / SOL_LAD_TAU[k];
     if (SOL_FX_HEAT && c->heat_on) o->der[NX - 1] = (R * o->i * o->i - T / c->Rth) / c->Cth;
     o->psi = psi;
-    o->F = f + c->fx[FX_FFR];
-    if (c->fric_on && c->x_m != c->fx[FX_XPREV]) {
-        double dx = c->x_m - c->fx[FX_XPREV], target = dx > 0.0 ? c->fricN : -c->fricN;
-        o->F = f + (target + (c->fx[FX_FFR] - target) * exp(-fabs(dx) / c->presl));
+    o->F = f + c->fx[FX_F_FRICTION_N];
+    if (c->fric_on && c->x_m != c->fx[FX_X_PREV_M]) {
+        double dx = c->x_m - c->fx[FX_X_PREV_M], target = dx > 0.0 ? c->fricN : -c->fricN;
+        o->F = f + (target + (c->fx[FX_F_FRICTION_N] - target) * exp(-fabs(dx) / c->presl));
     }
     o->ieddy = G * o->dpsi + sik;
     o->i_f = i_f;
@@ -700,15 +688,15 @@ static void me_commit(Core *c)
     MeOut o;
     if (!SOL_HAS_FX) return;
     me_eval(c, &o);
-    if (c->hyst_on) c->fx[FX_IH] = c->gain * play_step(c->fx + FX_PLAY, o.psi);
+    if (c->hyst_on) c->fx[FX_I_HYST_A] = c->gain * play_step(c->fx + FX_PLAY, o.psi);
     if (c->fric_on) {
-        double dx = c->x_m - c->fx[FX_XPREV];
+        double dx = c->x_m - c->fx[FX_X_PREV_M];
         if (dx != 0.0) {
             double target = dx > 0.0 ? c->fricN : -c->fricN;
-            c->fx[FX_FFR] = target + (c->fx[FX_FFR] - target) * exp(-fabs(dx) / c->presl);
+            c->fx[FX_F_FRICTION_N] = target + (c->fx[FX_F_FRICTION_N] - target) * exp(-fabs(dx) / c->presl);
         }
     }
-    c->fx[FX_XPREV] = c->x_m;
+    c->fx[FX_X_PREV_M] = c->x_m;
 }
 
 /* Update the excursion flags at an accepted model-exchange point (logs once per excursion). */
@@ -726,22 +714,22 @@ static void reset_core(Core *c)
     c->u_V = 0.0;
     c->i_A = 0.0;
     c->x_m = SOL_X_START;
-    c->R_set = SOL_R_DEFAULT;
-    c->G_set = SOL_G_DEFAULT;
-    c->Psi0_set = SOL_PSI0_DEFAULT;
-    c->hsub_set = SOL_HSUB_DEFAULT;
-    c->drive_set = SOL_DRIVE_DEFAULT;
-    c->voltage = SOL_DRIVE_DEFAULT == DRIVE_VOLTAGE;
-    c->R = SOL_R_DEFAULT;
-    c->G = SOL_G_DEFAULT;
+    c->R_set = SOL_R_OHM_DEFAULT;
+    c->G_set = SOL_G_EDDY_S_DEFAULT;
+    c->Psi0_set = SOL_PSI0_WB_DEFAULT;
+    c->hsub_set = SOL_H_SUB_MAX_S_DEFAULT;
+    c->drive_set = SOL_DRIVE_MODE_DEFAULT;
+    c->voltage = SOL_DRIVE_MODE_DEFAULT == DRIVE_VOLTAGE;
+    c->R = SOL_R_OHM_DEFAULT;
+    c->G = SOL_G_EDDY_S_DEFAULT;
     c->m = c->voltage ? 1.0 + c->R * c->G : c->G;
     c->c = c->voltage ? c->R : 1.0;
-    c->hsub = SOL_HSUB_DEFAULT;
-    c->inv_hsub = 1.0 / SOL_HSUB_DEFAULT;
-    c->hyst_set = SOL_HYST_ON_DEFAULT;
-    c->lad_set = SOL_LAD_ON_DEFAULT;
-    c->heat_set = SOL_HEAT_ON_DEFAULT;
-    c->fric_set = SOL_FRIC_ON_DEFAULT;
+    c->hsub = SOL_H_SUB_MAX_S_DEFAULT;
+    c->inv_hsub = 1.0 / SOL_H_SUB_MAX_S_DEFAULT;
+    c->hyst_set = SOL_HYSTERESIS_ON_DEFAULT;
+    c->lad_set = SOL_EDDY_LADDER_ON_DEFAULT;
+    c->heat_set = SOL_HEATING_ON_DEFAULT;
+    c->fric_set = SOL_FRICTION_ON_DEFAULT;
     c->gain_set = SOL_HYST_GAIN_DEFAULT;
     c->Cth_set = SOL_C_TH_J_PER_K_DEFAULT;
     c->Rth_set = SOL_R_TH_K_PER_W_DEFAULT;
@@ -750,7 +738,7 @@ static void reset_core(Core *c)
     c->presl_set = SOL_PRESLIDING_M_DEFAULT;
     c->dirty = 1;
     c->ready = 0;
-    c->s[ST_LAYOUT] = STATE_LAYOUT;
+    c->s[ST_STATE_LAYOUT] = STATE_LAYOUT;
 }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -877,28 +865,28 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
     }
     for (k = 0; k < nvr; k++) {
         switch (vr[k]) {
-        case VR_U: value[k] = c->u_V; break;
-        case VR_I: value[k] = c->i_A; break;
-        case VR_X: value[k] = c->x_m; break;
-        case VR_I_OUT: value[k] = me ? o.i : c->s[ST_I]; break;
-        case VR_U_OUT: value[k] = me ? o.U : c->s[ST_U]; break;
-        case VR_F: value[k] = me ? o.F : c->s[ST_F]; break;
-        case VR_PSI: value[k] = me ? o.psi : c->s[ST_PSI]; break;
-        case VR_DPSI: value[k] = me ? o.dpsi : c->s[ST_DPSI]; break;
-        case VR_IEDDY: value[k] = me ? o.ieddy : c->s[ST_IEDDY]; break;
-        case VR_R: value[k] = c->R_set; break;
-        case VR_G: value[k] = c->G_set; break;
-        case VR_PSI0: value[k] = c->Psi0_set; break;
-        case VR_HSUB: value[k] = c->hsub_set; break;
+        case VR_U_V: value[k] = c->u_V; break;
+        case VR_I_A: value[k] = c->i_A; break;
+        case VR_X_M: value[k] = c->x_m; break;
+        case VR_I_OUT_A: value[k] = me ? o.i : c->s[ST_OUT_I_A]; break;
+        case VR_U_OUT_V: value[k] = me ? o.U : c->s[ST_OUT_U_V]; break;
+        case VR_F_N: value[k] = me ? o.F : c->s[ST_OUT_F_N]; break;
+        case VR_PSI_WB: value[k] = me ? o.psi : c->s[ST_PSI_WB]; break;
+        case VR_DPSI_DT_V: value[k] = me ? o.dpsi : c->s[ST_OUT_DPSI_DT_V]; break;
+        case VR_I_EDDY_A: value[k] = me ? o.ieddy : c->s[ST_OUT_I_EDDY_A]; break;
+        case VR_R_OHM: value[k] = c->R_set; break;
+        case VR_G_EDDY_S: value[k] = c->G_set; break;
+        case VR_PSI0_WB: value[k] = c->Psi0_set; break;
+        case VR_H_SUB_MAX_S: value[k] = c->hsub_set; break;
 #if SOL_HAS_FX
-        case VR_IHYST: value[k] = me ? o.ih : c->fx[FX_IH]; break;
-        case VR_TRISE: value[k] = me ? o.T : c->fx[FX_T]; break;
+        case VR_I_HYST_A: value[k] = me ? o.ih : c->fx[FX_I_HYST_A]; break;
+        case VR_T_RISE_K: value[k] = me ? o.T : c->fx[FX_T_RISE_K]; break;
         case VR_HYST_GAIN: value[k] = c->gain_set; break;
-        case VR_CTH: value[k] = c->Cth_set; break;
-        case VR_RTH: value[k] = c->Rth_set; break;
-        case VR_ALPHA: value[k] = c->alpha_set; break;
-        case VR_FRIC_N: value[k] = c->fricN_set; break;
-        case VR_PRESL: value[k] = c->presl_set; break;
+        case VR_C_TH_J_PER_K: value[k] = c->Cth_set; break;
+        case VR_R_TH_K_PER_W: value[k] = c->Rth_set; break;
+        case VR_ALPHA_PER_K: value[k] = c->alpha_set; break;
+        case VR_FRICTION_N: value[k] = c->fricN_set; break;
+        case VR_PRESLIDING_M: value[k] = c->presl_set; break;
 #endif
         default:
             if (vr[k] >= VR_PSI_STATE && vr[k] < VR_PSI_STATE + 2 * NX) {
@@ -907,10 +895,10 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
                 int kk = (int)(vr[k] - VR_PSI_STATE);
                 if (kk < NX) {
                     double xs = kk == 0 ? c->me_psi_Wb : kk < ME_T ? c->me_lad[kk - ME_LAD] : c->me_T;
-                    double cs = kk == 0 ? c->s[ST_PSI] : kk < ME_T ? c->fx[FX_LAD + kk - ME_LAD] : c->fx[FX_T];
+                    double cs = kk == 0 ? c->s[ST_PSI_WB] : kk < ME_T ? c->fx[FX_LAD + kk - ME_LAD] : c->fx[FX_T_RISE_K];
                     value[k] = me ? xs : cs;
                 } else {
-                    value[k] = me ? o.der[kk - NX] : kk == NX ? c->s[ST_DPSI] : 0.0;
+                    value[k] = me ? o.der[kk - NX] : kk == NX ? c->s[ST_OUT_DPSI_DT_V] : 0.0;
                 }
                 break;
             }
@@ -927,7 +915,7 @@ fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
     size_t k;
     if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
     for (k = 0; k < nvr; k++) {
-        if (vr[k] != VR_DRIVE) {
+        if (vr[k] != VR_DRIVE_MODE) {
             say(in, fmi2Error, "fmi2GetInteger: no Integer/Enumeration variable with value reference %u",
                 (unsigned)vr[k]);
             return fmi2Error;
@@ -945,12 +933,12 @@ fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
     for (k = 0; k < nvr; k++) {
         const Core *c = &in->core;
         switch (vr[k]) {
-        case VR_OOM: value[k] = (c->s[ST_EXC_PSI] != 0.0 || c->s[ST_EXC_X] != 0.0) ? fmi2True : fmi2False; break;
+        case VR_OUT_OF_MAP: value[k] = (c->s[ST_EXCURSION_PSI] != 0.0 || c->s[ST_EXCURSION_X] != 0.0) ? fmi2True : fmi2False; break;
 #if SOL_HAS_FX
-        case VR_HYST_ON: value[k] = c->hyst_set ? fmi2True : fmi2False; break;
-        case VR_LAD_ON: value[k] = c->lad_set ? fmi2True : fmi2False; break;
-        case VR_HEAT_ON: value[k] = c->heat_set ? fmi2True : fmi2False; break;
-        case VR_FRIC_ON: value[k] = c->fric_set ? fmi2True : fmi2False; break;
+        case VR_HYSTERESIS_ON: value[k] = c->hyst_set ? fmi2True : fmi2False; break;
+        case VR_EDDY_LADDER_ON: value[k] = c->lad_set ? fmi2True : fmi2False; break;
+        case VR_HEATING_ON: value[k] = c->heat_set ? fmi2True : fmi2False; break;
+        case VR_FRICTION_ON: value[k] = c->fric_set ? fmi2True : fmi2False; break;
 #endif
         default:
             say(in, fmi2Error, "fmi2GetBoolean: no Boolean variable with value reference %u", (unsigned)vr[k]);
@@ -980,37 +968,37 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
     for (k = 0; k < nvr; k++) {
         double v = value[k];
         switch (vr[k]) {
-        case VR_U: c->u_V = v; break;
-        case VR_I: c->i_A = v; break;
-        case VR_X: c->x_m = v; break;
-        case VR_R: c->R_set = v; c->dirty = 1; break;
-        case VR_G: c->G_set = v; c->dirty = 1; break;
-        case VR_PSI0:
-        case VR_HSUB:
+        case VR_U_V: c->u_V = v; break;
+        case VR_I_A: c->i_A = v; break;
+        case VR_X_M: c->x_m = v; break;
+        case VR_R_OHM: c->R_set = v; c->dirty = 1; break;
+        case VR_G_EDDY_S: c->G_set = v; c->dirty = 1; break;
+        case VR_PSI0_WB:
+        case VR_H_SUB_MAX_S:
             if (!is_fixed_phase(in)) {
                 say(in, fmi2Error, "fmi2SetReal: %s is a fixed parameter; set it before fmi2ExitInitializationMode",
-                    vr[k] == VR_PSI0 ? "Psi0_Wb" : "h_sub_max_s");
+                    vr[k] == VR_PSI0_WB ? "Psi0_Wb" : "h_sub_max_s");
                 return fmi2Error;
             }
-            if (vr[k] == VR_PSI0) c->Psi0_set = v; else c->hsub_set = v;
+            if (vr[k] == VR_PSI0_WB) c->Psi0_set = v; else c->hsub_set = v;
             c->dirty = 1;
             break;
 #if SOL_HAS_FX
         case VR_HYST_GAIN: c->gain_set = v; c->dirty = 1; break;   /* tunable */
-        case VR_FRIC_N: c->fricN_set = v; c->dirty = 1; break;     /* tunable */
-        case VR_CTH:
-        case VR_RTH:
-        case VR_ALPHA:
-        case VR_PRESL:
+        case VR_FRICTION_N: c->fricN_set = v; c->dirty = 1; break;     /* tunable */
+        case VR_C_TH_J_PER_K:
+        case VR_R_TH_K_PER_W:
+        case VR_ALPHA_PER_K:
+        case VR_PRESLIDING_M:
             if (!is_fixed_phase(in)) {
                 say(in, fmi2Error, "fmi2SetReal: %s is a fixed parameter; set it before fmi2ExitInitializationMode",
-                    vr[k] == VR_CTH ? "C_th_J_per_K" : vr[k] == VR_RTH ? "R_th_K_per_W"
-                    : vr[k] == VR_ALPHA ? "alpha_per_K" : "presliding_m");
+                    vr[k] == VR_C_TH_J_PER_K ? "C_th_J_per_K" : vr[k] == VR_R_TH_K_PER_W ? "R_th_K_per_W"
+                    : vr[k] == VR_ALPHA_PER_K ? "alpha_per_K" : "presliding_m");
                 return fmi2Error;
             }
-            if (vr[k] == VR_CTH) c->Cth_set = v;
-            else if (vr[k] == VR_RTH) c->Rth_set = v;
-            else if (vr[k] == VR_ALPHA) c->alpha_set = v;
+            if (vr[k] == VR_C_TH_J_PER_K) c->Cth_set = v;
+            else if (vr[k] == VR_R_TH_K_PER_W) c->Rth_set = v;
+            else if (vr[k] == VR_ALPHA_PER_K) c->alpha_set = v;
             else c->presl_set = v;
             c->dirty = 1;
             break;
@@ -1029,7 +1017,7 @@ fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
     size_t k;
     if (in == NULL || (nvr && (vr == NULL || value == NULL))) return fmi2Error;
     for (k = 0; k < nvr; k++) {
-        if (vr[k] != VR_DRIVE) {
+        if (vr[k] != VR_DRIVE_MODE) {
             say(in, fmi2Error, "fmi2SetInteger: value reference %u is not an Integer/Enumeration parameter",
                 (unsigned)vr[k]);
             return fmi2Error;
@@ -1056,7 +1044,7 @@ fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
     for (k = 0; k < nvr; k++) {
         Core *c = &in->core;
         int on = value[k] ? 1 : 0;
-        if (!SOL_HAS_FX || (vr[k] != VR_HYST_ON && vr[k] != VR_LAD_ON && vr[k] != VR_HEAT_ON && vr[k] != VR_FRIC_ON)) {
+        if (!SOL_HAS_FX || (vr[k] != VR_HYSTERESIS_ON && vr[k] != VR_EDDY_LADDER_ON && vr[k] != VR_HEATING_ON && vr[k] != VR_FRICTION_ON)) {
             say(in, fmi2Error, "fmi2SetBoolean: value reference %u is not a Boolean parameter", (unsigned)vr[k]);
             return fmi2Error;
         }
@@ -1065,9 +1053,9 @@ fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
                 "fmi2ExitInitializationMode");
             return fmi2Error;
         }
-        if (vr[k] == VR_HYST_ON) c->hyst_set = on;
-        else if (vr[k] == VR_LAD_ON) c->lad_set = on;
-        else if (vr[k] == VR_HEAT_ON) c->heat_set = on;
+        if (vr[k] == VR_HYSTERESIS_ON) c->hyst_set = on;
+        else if (vr[k] == VR_EDDY_LADDER_ON) c->lad_set = on;
+        else if (vr[k] == VR_HEATING_ON) c->heat_set = on;
         else c->fric_set = on;
         c->dirty = 1;
     }
@@ -1097,7 +1085,7 @@ static const char *core_problem(const Core *c)
     const double used[] = { c->R, c->G, c->Psi0, c->t0_s, c->gain, c->Cth, c->Rth, c->alpha,
                             c->fricN, c->presl, c->me_time_s, c->me_psi_Wb, c->me_T };
     size_t k;
-    if (c->s[ST_LAYOUT] != STATE_LAYOUT) return "state layout";
+    if (c->s[ST_STATE_LAYOUT] != STATE_LAYOUT) return "state layout";
     for (k = 0; k < N_STATE; k++) if (!is_finite(c->s[k])) return "model state not finite";
     for (k = 0; k < N_FX; k++) if (!is_finite(c->fx[k])) return "effect state not finite";
     for (k = 0; k < LAD_ALLOC; k++) if (!is_finite(c->me_lad[k])) return "eddy-ladder state not finite";
@@ -1266,7 +1254,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
         if (c->fx_on) sol_step_fx(in, t, h);
         else sol_step(in, t, h);
         for (k = 0; k < N_STATE; k++) if (!is_finite(c->s[k])) break;
-        if (k < N_STATE || !is_finite(c->fx[FX_T]) || !is_finite(c->fx[FX_IH])) {
+        if (k < N_STATE || !is_finite(c->fx[FX_T_RISE_K]) || !is_finite(c->fx[FX_I_HYST_A])) {
             for (k = 0; k < N_STATE; k++) c->s[k] = s_keep[k];
             for (k = 0; k < N_FX; k++) c->fx[k] = fx_keep[k];
             say(in, fmi2Error, "doStep at t = %.17g s: the state became non-finite (inputs or parameters far "
@@ -1296,7 +1284,7 @@ fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Rea
 {
     Inst *in = (Inst *)comp;
     if (in == NULL || value == NULL) return fmi2Error;
-    if (s == fmi2LastSuccessfulTime) { *value = in->core.s[ST_TIME]; return fmi2OK; }
+    if (s == fmi2LastSuccessfulTime) { *value = in->core.s[ST_TIME_S]; return fmi2OK; }
     return fmi2Discard;
 }
 
@@ -1364,7 +1352,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp, fmi2Boolean noSetFMUS
     *terminateSimulation = fmi2False;
     if (me_prepare(in, "fmi2CompletedIntegratorStep") != fmi2OK) return fmi2Error;
     me_flags(in);
-    in->core.s[ST_TIME] = in->core.me_time_s;
+    in->core.s[ST_TIME_S] = in->core.me_time_s;
     me_commit(&in->core);
     return fmi2OK;
 }
