@@ -459,7 +459,7 @@ static void sol_step(Inst *in, double t_s, double h)
     finish(in, s, pc, i_f, x, xc, t_s + h);
 }
 
-/* ---- effect sub-models (model.py _play_step, SolenoidModel._step_fx) ------------------------ */
+/* ---- effect sub-models (model.py play_step, SolenoidModel._step_fx) ------------------------ */
 /* Advance the play operators to b [Wb] (in place) and return g(b) sum w_j (b - p_j) [A]. */
 static double play_step(double *plays, double b)
 {
