@@ -19,7 +19,7 @@ from .errors import SolenoidError
 COMMAND_MODULES = (
     "field.fem",
     "maps.core",
-    "measure.recordings",
+    "measure.cli",
     "rig.core",
     "identification.identify",
     "maps.eddy",

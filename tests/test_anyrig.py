@@ -18,7 +18,7 @@ from solenoid_fmu.fmu.export import simulate_model
 from solenoid_fmu.loop.diagnose import ResidualCase, conditioned_position, diagnose, residual_case
 from solenoid_fmu.loop.improvement import _cases, _error, improve_tables, split_recordings
 from solenoid_fmu.loop.validate import full_scales, validate_cases
-from solenoid_fmu.measure.recordings import commutation_curve, flux_linkage, make_recording, read_recording
+from solenoid_fmu.measure import commutation_curve, flux_linkage, make_recording, read_recording
 from solenoid_fmu.rig.core import Effects, Excitation, TruthModel, measure
 from solenoid_fmu.rig.protocols import random_campaign
 
@@ -305,7 +305,7 @@ def test_truth_json_records_the_drawn_protocol(rig_maps):
 def test_identify_and_commutation_refuse_flux_whose_integration_constant_is_unknown(rig_maps, tmp_path):
     from solenoid_fmu.errors import RecordingError
     from solenoid_fmu.identification.identify import identify_from_recordings
-    from solenoid_fmu.measure.recordings import write_recording
+    from solenoid_fmu.measure import write_recording
 
     rec, _ = _energized_stroke(rig_maps[0], rest_at_end=True)
     flux = make_recording("flux", "PS45", rec.time_s, rec.current_A, voltage_V=rec.voltage_V, position_m=1.5e-3,

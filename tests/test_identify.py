@@ -205,7 +205,7 @@ def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
     """Flux recordings at two strokes: the stroke with more recordings is identified, the other
     one is compared in fig. 16 and the JSON (here copies of demo recordings relabelled 2.0 mm)."""
     from solenoid_fmu.identification.identify import _group_flux, write_report
-    from solenoid_fmu.measure.recordings import read_recording
+    from solenoid_fmu.measure import read_recording
 
     src = sorted(glob.glob(f"{DEMO}/recordings/0[1-4]_flux_*.csv"))
     moved = []
