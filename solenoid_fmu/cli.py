@@ -21,7 +21,7 @@ COMMAND_MODULES = (
     "maps.core",
     "measure.cli",
     "rig.core",
-    "identification.identify",
+    "identification.cli",
     "maps.eddy",
     "fmu.export",
     "loop.validate",
