@@ -17,7 +17,7 @@ from .errors import SolenoidError
 
 #: Modules that contribute subcommands, in the order of the data flow.
 COMMAND_MODULES = (
-    "field.fem",
+    "field.cli",
     "maps.core",
     "measure.cli",
     "rig.core",

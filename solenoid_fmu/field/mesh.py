@@ -15,7 +15,7 @@ gap x every vertex moves by ``(x - x_ref) * (dr_dx, dz_dx)``:
 
 The vertex positions are affine in x with a fixed connectivity: Psi and the force are smooth
 functions of x with no remeshing noise, and the co-energy can be differentiated with respect to x
-exactly on the discrete level (see :mod:`solenoid_fmu.fem`). The knots must keep their order over
+exactly on the discrete level (see :mod:`solenoid_fmu.field.fem`). The knots must keep their order over
 the stroke (checked, MeshError otherwise), and elements never invert: signed areas are quadratic
 in x, checked at both ends of the stroke and at their minimum.
 

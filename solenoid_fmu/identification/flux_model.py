@@ -95,7 +95,7 @@ class FluxModel:
         steel = s.steel
         P = len(theta)
         w = cfg.psi_weights.copy()
-        w[s._isdir] = 0.0
+        w[s.dirichlet_mask] = 0.0
         pairs = []
         for p in range(P):
             e = np.zeros(P)
@@ -107,11 +107,11 @@ class FluxModel:
         with threadpool_limits(limits=1):
             for k, i in enumerate(self.i_A):
                 u = us[k]
-                K, _ = s._tangent(cfg, u, float(i) * cfg.f_coil + cfg.f_fixed)
-                lam = s._spd.solve(K.data, K.indices, K.indptr, w)
+                K, _ = s.tangent(cfg, u, float(i) * cfg.f_coil + cfg.f_fixed)
+                lam = s.linear_solver.solve(K.data, K.indices, K.indptr, w)
                 self.adjoint_solves += 1
-                g = s._grad(cfg, u)[:, steel]
-                gl = s._grad(cfg, lam)[:, steel]
+                g = s.grad(cfg, u)[:, steel]
+                gl = s.grad(cfg, lam)[:, steel]
                 b2 = (g[0] ** 2 + g[1] ** 2) / r2
                 dot = (g[0] * gl[0] + g[1] * gl[1]) * wr
                 for p, (cp, cm) in enumerate(pairs):
@@ -125,7 +125,7 @@ class FluxModel:
         k = int(np.argmin(np.abs(self.i_A - i_A)))
         sol = s.solve(float(i_A), self.x_m, u0=self.u[k])
         cfg = s.config(self.x_m)
-        g = s._grad(cfg, sol.u)[:, s.steel]
+        g = s.grad(cfg, sol.u)[:, s.steel]
         B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
         vol = 2 * np.pi * cfg.dx[s.steel] * cfg.r[s.steel]
         return s.material.H_of_B(B).ravel(), vol.ravel()
@@ -156,7 +156,7 @@ def fem_flux(geometry, curve: BHCurve, i_A, x_m: float, mesh_size: float) -> np.
 
 
 def as_geometry(geometry):
-    """A :class:`~solenoid_fmu.field.Geometry` as given, or loaded from a path (None: the packaged PS45)."""
+    """A :class:`~solenoid_fmu.field.geometry.Geometry` as given, or loaded from a path (None: the packaged PS45)."""
     if geometry is None or isinstance(geometry, (str, Path)):
         return load_geometry(geometry)
     return geometry
