@@ -105,7 +105,7 @@ class _Config:
     """Everything that depends on the gap x: quadrature data on the morphed mesh."""
 
     def __init__(self, solver: Solver, x_m: float):
-        from skfem import Basis, ElementTriP2, MeshTri
+        from skfem import Basis, ElementTriP2, MeshTri  # loaded on first solve: importing the field stays cheaper
 
         mm = solver.mesh
         self.x_m = x_m
@@ -179,7 +179,7 @@ class Solver:
     """
 
     def __init__(self, geometry: Geometry, material: BHCurve, mesh_size: float = 1.0, mesh: MorphMesh = None):
-        from skfem import Basis, ElementTriP2, MeshTri
+        from skfem import Basis, ElementTriP2, MeshTri  # loaded on first solve: importing the field stays cheaper
 
         self.geometry = geometry
         self.material = material
@@ -452,7 +452,7 @@ class Solver:
         free = np.isnan(g)
         # distance of free (air) vertices to the armature's vertices, capped by the layer thickness
         arm_v = np.unique(mm.t[:, self.moving_elements])
-        from scipy.spatial import cKDTree
+        from scipy.spatial import cKDTree  # loaded on first use (about 0.2 s)
 
         d, _ = cKDTree(cfg.p[:, arm_v].T).query(cfg.p[:, free].T)
         g[free] = np.clip(1.0 - d / EGGSHELL_M, 0.0, 1.0)

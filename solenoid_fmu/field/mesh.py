@@ -102,7 +102,7 @@ class MorphMesh:
 
 def _pslg(geom: Geometry, x_ref: float):
     """Vertices, segments (with markers) and region seeds of the planar straight-line graph."""
-    from shapely.geometry import Polygon
+    from shapely.geometry import Polygon  # loaded when a mesh is built, not on import
 
     d = geom.domain
     polys = []
@@ -190,7 +190,7 @@ def build_mesh(geom: Geometry, mesh_size: float = 1.0, x_ref_m: float | None = N
     -------
     MorphMesh
     """
-    import triangle
+    import triangle  # loaded when a mesh is built, not on import
 
     if not mesh_size > 0:
         raise MeshError(f"mesh_size must be > 0, got {mesh_size!r}")

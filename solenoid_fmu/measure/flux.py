@@ -135,7 +135,7 @@ def _noise_std(y: np.ndarray) -> float:
 
 
 def _smooth(y: np.ndarray, k: int) -> np.ndarray:
-    from scipy.ndimage import uniform_filter1d
+    from scipy.ndimage import uniform_filter1d  # heavy: see the module docstring
 
     return y if k <= 1 else uniform_filter1d(y, size=k, mode="nearest")
 
@@ -183,7 +183,7 @@ def _offset_model(t, u, head, tail):
     U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
     A rest phase whose voltage is still settling (:func:`_stationary`) is not used.
     """
-    from scipy.stats import trim_mean
+    from scipy.stats import trim_mean  # heavy: see the module docstring
 
     anchors = []
     se = 0.0
@@ -201,7 +201,7 @@ def _offset_model(t, u, head, tail):
 
 def _plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
     """Boolean mask of settled samples on non-zero current plateaus (second half of each run)."""
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d  # heavy: see the module docstring
 
     band = max(10.0 * sigma_s, 1e-3 * i_max)
     span = maximum_filter1d(i_s, min_len, mode="nearest") - minimum_filter1d(i_s, min_len, mode="nearest")
@@ -326,7 +326,7 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
                 "(give --resistance-ohm or add '# coil_resistance_ohm: ...')"])
         R = R_est
 
-    from scipy.integrate import cumulative_trapezoid
+    from scipy.integrate import cumulative_trapezoid  # heavy: see the module docstring
 
     psi = cumulative_trapezoid(uc - R * ic, t, initial=0.0)
     offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
