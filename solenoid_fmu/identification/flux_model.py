@@ -131,28 +131,27 @@ class FluxModel:
         return s.material.H_of_B(B).ravel(), vol.ravel()
 
 
-def fem_force_vs_stroke(geometry, curve: BHCurve, i_A: float, x_m, mesh_size: float) -> np.ndarray:
-    """Co-energy force [N] (paper eq. 3) at current ``i_A`` [A] and gaps ``x_m`` [m] (FEM)."""
+def _warm_sweep(geometry, curve: BHCurve, mesh_size: float, points, quantity: str) -> np.ndarray:
+    """``quantity`` of the FEM solution at each (i [A], x [m]) of ``points``, every solve warm-started
+    from the previous one."""
     solver = Solver(geometry, curve, mesh_size)
     out = []
     u = None
-    for x in np.asarray(x_m, dtype=float):
-        sol = solver.solve(float(i_A), float(x), u0=u)
+    for i, x in points:
+        sol = solver.solve(float(i), float(x), u0=u)
         u = sol.u
-        out.append(sol.force_N)
+        out.append(getattr(sol, quantity))
     return np.array(out)
+
+
+def fem_force_vs_stroke(geometry, curve: BHCurve, i_A: float, x_m, mesh_size: float) -> np.ndarray:
+    """Co-energy force [N] (paper eq. 3) at current ``i_A`` [A] and gaps ``x_m`` [m] (FEM)."""
+    return _warm_sweep(geometry, curve, mesh_size, ((i_A, x) for x in np.asarray(x_m, dtype=float)), "force_N")
 
 
 def fem_flux(geometry, curve: BHCurve, i_A, x_m: float, mesh_size: float) -> np.ndarray:
     """Psi [Wb] at currents ``i_A`` [A] and gap ``x_m`` [m] (FEM, warm-started sweep)."""
-    solver = Solver(geometry, curve, mesh_size)
-    out = []
-    u = None
-    for i in np.asarray(i_A, dtype=float):
-        sol = solver.solve(float(i), float(x_m), u0=u)
-        u = sol.u
-        out.append(sol.psi_Wb)
-    return np.array(out)
+    return _warm_sweep(geometry, curve, mesh_size, ((i, x_m) for i in np.asarray(i_A, dtype=float)), "psi_Wb")
 
 
 def as_geometry(geometry):

@@ -23,6 +23,20 @@ def _pyplot():
     return plt
 
 
+def _finish_comparison(plt, fig, ax, xlabel: str, ylabel: str, title: str, path) -> None:
+    """Legend entries of the two FEM line styles, labels, and the PNG of a measured-vs-FEM figure."""
+    ax.plot([], [], "kx--", label="FEM, start curve")
+    ax.plot([], [], "ko:", label="FEM, identified")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def plot_flux_fit(r: IdentificationResult, summary: dict, path) -> None:
     """Fig. 10: measured commutation Psi(i), FEM with the start and the identified curve."""
     plt = _pyplot()
@@ -89,16 +103,7 @@ def plot_force_stroke(curves, path) -> None:
         ax.plot(x * 1e3, fc["force_N"], "-", color=c, lw=1, label=f"measured {fc['i_A']:.2g} A")
         ax.plot(xs * 1e3, f0, "x--", color=c, lw=0.8, ms=4)
         ax.plot(xs * 1e3, f1, "o:", color=c, lw=0.8, ms=4)
-    ax.plot([], [], "kx--", label="FEM, start curve")
-    ax.plot([], [], "ko:", label="FEM, identified")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("F [N]")
-    ax.set_title("Force vs stroke (cf. paper figs. 15-17)")
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _finish_comparison(plt, fig, ax, "x [mm]", "F [N]", "Force vs stroke (cf. paper figs. 15-17)", path)
 
 
 def plot_flux_other_strokes(curves, path) -> None:
@@ -111,13 +116,5 @@ def plot_flux_other_strokes(curves, path) -> None:
         ax.plot(cc.i_A, cc.psi_Wb * 1e3, "-", color=c, lw=1, label=f"measured x = {cc.position_m * 1e3:g} mm")
         ax.plot(i_sel, p0 * 1e3, "x--", color=c, ms=4)
         ax.plot(i_sel, p1 * 1e3, "o:", color=c, ms=4)
-    ax.plot([], [], "kx--", label="FEM, start curve")
-    ax.plot([], [], "ko:", label="FEM, identified")
-    ax.set_xlabel("i [A]")
-    ax.set_ylabel("Psi [mWb]")
-    ax.set_title("Flux linkage at other strokes (cf. paper figs. 15-17)")
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _finish_comparison(plt, fig, ax, "i [A]", "Psi [mWb]", "Flux linkage at other strokes (cf. paper figs. 15-17)",
+                       path)
