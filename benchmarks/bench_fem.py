@@ -9,8 +9,9 @@ Goal (issue 2): under 0.3 s cold and 0.1 s warm on a 2-core machine.
 import statistics
 import time
 
-from solenoid_fmu.field.fem import LINEAR_SOLVER, Solver
+from solenoid_fmu.field.fem import Solver
 from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.linear_solver import LINEAR_SOLVER
 from solenoid_fmu.field.material import load_material
 
 

@@ -37,11 +37,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
 from .geometry import Geometry
+from .linear_solver import SPDSolver
 from .material import NU_0, BHCurve
 from .mesh import MorphMesh, build_mesh
 
@@ -246,7 +246,7 @@ class Solver:
         self._dir_mask = isdir[r] | isdir[c]
         self._dir_diag = np.flatnonzero(isdir[r] & (r == c))
         self.dirichlet_mask = isdir
-        self.linear_solver = _SPDSolver(self._indptr, self._indices, n)
+        self.linear_solver = SPDSolver(self._indptr, self._indices, n)
 
     def _assemble_source(self, cfg: _Config, density: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(density)
@@ -477,53 +477,6 @@ class Solver:
         return float(2 * np.pi * np.sum(cfg.dx * integrand))
 
 
-class _SPDSolver:
-    """Direct solver for the SPD Newton systems of one sparsity pattern.
-
-    With ``pypardiso`` (MKL PARDISO, x86_64) the symbolic analysis (fill-reducing ordering) runs
-    once per pattern and each Newton step does only the numeric Cholesky factorization and the
-    solve (~0.05 s for 17k unknowns). Without it, SuperLU in symmetric mode (diagonal pivoting,
-    minimum-degree ordering of A^T + A), several times slower.
-    """
-
-    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
-        self.n = n
-        rows = np.repeat(np.arange(n), np.diff(indptr))
-        self.upper = indices >= rows
-        cnt = np.bincount(rows[self.upper], minlength=n)
-        self.u_indptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int32)
-        self.u_indices = indices[self.upper].astype(np.int32)
-        self._ps = None
-        if _pardiso is not None:
-            self._ps = _pardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
-            self._analysed = False
-
-    def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
-        if self._ps is None:
-            K = sp.csc_matrix((data, indices, indptr), shape=(self.n, self.n))  # symmetric: CSR = CSC^T
-            lu = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-            return lu.solve(b)
-        A = sp.csr_matrix((data[self.upper], self.u_indices, self.u_indptr), shape=(self.n, self.n))
-        A.has_sorted_indices = True
-        if not self._analysed:
-            self._ps.set_phase(11)
-            self._ps._call_pardiso(A, b)
-            self._analysed = True
-        self._ps.set_phase(22)
-        self._ps._call_pardiso(A, b)
-        self._ps.set_phase(33)
-        return self._ps._call_pardiso(A, b)
-
-
-try:  # optional accelerator, see _SPDSolver
-    import pypardiso as _pardiso
-except ImportError:  # pragma: no cover - depends on the platform
-    _pardiso = None
-
-#: The direct solver of the Newton systems on this machine: "MKL PARDISO" or "SuperLU".
-LINEAR_SOLVER = "MKL PARDISO" if _pardiso is not None else "SuperLU"
-
-
 # -- module-level conveniences -------------------------------------------------------------------
 _SOLVERS: dict = {}
 
@@ -584,4 +537,4 @@ def sweep_currents(geometry: Geometry, material: BHCurve, x_m: float, i_A, mesh_
     return out
 
 
-__all__ = ["Solver", "Solution", "solve_point", "sweep_currents", "get_solver", "LINEAR_SOLVER"]
+__all__ = ["Solver", "Solution", "solve_point", "sweep_currents", "get_solver"]
