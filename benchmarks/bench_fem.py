@@ -9,8 +9,9 @@ Goal (issue 2): under 0.3 s cold and 0.1 s warm on a 2-core machine.
 import statistics
 import time
 
-from solenoid_fmu.field.fem import Solver, _pardiso
+from solenoid_fmu.field.fem import Solver
 from solenoid_fmu.field.geometry import load_geometry
+from solenoid_fmu.field.linear_solver import LINEAR_SOLVER
 from solenoid_fmu.field.material import load_material
 
 
@@ -36,7 +37,7 @@ def main():
     fine = Solver(geom, mat, mesh_size=0.25)
     fine.solve(0.5, 1.5e-3)
     fine_t, fine_it = median_time(lambda: fine.solve(1.5, 1.5e-3), repeat=3)
-    print(f"linear solver: {'MKL PARDISO' if _pardiso else 'SuperLU'}; unknowns {solver.ndofs} (fine: {fine.ndofs})")
+    print(f"linear solver: {LINEAR_SOLVER}; unknowns {solver.ndofs} (fine: {fine.ndofs})")
     print(f"mesh + setup (once per geometry): {setup:.3f} s")
     print(f"cold solve (i = 1.5 A, x = 1.5 mm): {cold_t:.3f} s median, {cold_it:.0f} Newton iterations")
     print(f"warm solve (from 1.45 A):          {warm_t:.3f} s median, {warm_it:.0f} Newton iterations")

@@ -24,8 +24,8 @@ import numpy as np
 
 from solenoid_fmu.field.geometry import load_geometry
 from solenoid_fmu.field.material import load_material
-from solenoid_fmu.identification.identify import DEFAULT_MESH_SIZE, choose_currents, hysteresis_half_width, identify_bh
-from solenoid_fmu.measure.recordings import commutation_curve, read_recording
+from solenoid_fmu.identification import DEFAULT_MESH_SIZE, choose_currents, hysteresis_half_width, identify_bh
+from solenoid_fmu.measure import commutation_curve, read_recording
 
 DEMO = "fitting/ps45-demo"
 

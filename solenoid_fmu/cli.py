@@ -17,11 +17,11 @@ from .errors import SolenoidError
 
 #: Modules that contribute subcommands, in the order of the data flow.
 COMMAND_MODULES = (
-    "field.fem",
+    "field.cli",
     "maps.cli",
-    "measure.recordings",
+    "measure.cli",
     "rig.cli",
-    "identification.identify",
+    "identification.cli",
     "fmu.cli",
     "loop.validate",
     "loop.diagnose",

@@ -5,7 +5,7 @@
 1. **recordings**: every ``*.csv`` under the folder whose first line is the recording format's
    ``# recording:`` line (kinds from the headers; folders named ``truth`` are never entered, and
    files that are not recordings are listed as skipped);
-2. **identify**: B(H) from the ``flux`` recordings (:mod:`solenoid_fmu.identify`) ->
+2. **identify**: B(H) from the ``flux`` recordings (:mod:`solenoid_fmu.identification`) ->
    ``material/material.csv`` (+ ``.bh``, ``.tab``) and ``identify/`` (figures, JSON);
 3. **maps**: FEM sweep with the identified steel -> ``maps/`` (:func:`solenoid_fmu.maps.build_maps`); the
    sweep's currents reach ``1.25 x`` the coil's rated current or ``1.25 x`` the largest |current| in the
@@ -143,7 +143,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     from .field import load_geometry
     from .fileio import atomic_write_text
     from .fmu import build_fmu
-    from .identification import identify as _identify
+    from .identification import identify_from_recordings
     from .loop import improve
     from .maps import InlineExecutor, build_maps, fit_eddy, load_maps, save_maps
     from .measure import read_recording
@@ -179,9 +179,9 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
     for round_no in (1, 2):
         t0 = step(f"identify B(H) from the flux recordings{suffix}")
         material_csv = out / "material" / "material.csv"
-        ident = _identify.identify_from_recordings(ident_paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
-                                                   out_csv=material_csv, report_dir=out / "identify",
-                                                   progress=progress is not None, n_currents=cfg["n_currents"])
+        ident = identify_from_recordings(ident_paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
+                                         out_csv=material_csv, report_dir=out / "identify",
+                                         progress=progress is not None, n_currents=cfg["n_currents"])
         ident_summary = ident.summary()
         say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
             f"{ident_summary.get('equivalent_sweeps', float('nan')):.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")

@@ -18,7 +18,7 @@ from solenoid_fmu.fmu import simulate_model
 from solenoid_fmu.loop.diagnose import ResidualCase, conditioned_position, diagnose, residual_case
 from solenoid_fmu.loop.improvement import _cases, _error, improve_tables, split_recordings
 from solenoid_fmu.loop.validate import full_scales, validate_cases
-from solenoid_fmu.measure.recordings import commutation_curve, flux_linkage, make_recording, read_recording
+from solenoid_fmu.measure import commutation_curve, flux_linkage, make_recording, read_recording
 from solenoid_fmu.rig import Effects, Excitation, TruthModel, measure
 from solenoid_fmu.rig.protocols import random_campaign
 
@@ -210,9 +210,9 @@ def test_every_stage_takes_randomized_recordings(rig_maps, tmp_path_factory, see
         if rec.voltage_V is not None:
             fr = flux_linkage(rec)
             assert np.all(np.isfinite(fr.psi_Wb)), rec.path
-    from solenoid_fmu.identification.identify import _group_flux
+    from solenoid_fmu.identification import group_flux
 
-    main, _ = _group_flux([r for r in recs if r.kind == "flux"])
+    main, _ = group_flux([r for r in recs if r.kind == "flux"])
     cc = commutation_curve(main)
     assert cc.i_A.size > 5 and np.all(np.isfinite(cc.psi_Wb))
     assert cc.psi_Wb[-1] > cc.psi_Wb[cc.psi_Wb.size // 2] > cc.psi_Wb[1] > 0.0
@@ -304,8 +304,8 @@ def test_truth_json_records_the_drawn_protocol(rig_maps):
 
 def test_identify_and_commutation_refuse_flux_whose_integration_constant_is_unknown(rig_maps, tmp_path):
     from solenoid_fmu.errors import RecordingError
-    from solenoid_fmu.identification.identify import identify_from_recordings
-    from solenoid_fmu.measure.recordings import write_recording
+    from solenoid_fmu.identification import identify_from_recordings
+    from solenoid_fmu.measure import write_recording
 
     rec, _ = _energized_stroke(rig_maps[0], rest_at_end=True)
     flux = make_recording("flux", "PS45", rec.time_s, rec.current_A, voltage_V=rec.voltage_V, position_m=1.5e-3,
@@ -367,7 +367,7 @@ def test_eddy_fit_leaves_out_recordings_without_absolute_flux(rig_maps, rig_camp
 
 def test_force_stroke_curve_refuses_a_one_way_stroke_by_name(rig_campaign):
     from solenoid_fmu.errors import RecordingError
-    from solenoid_fmu.identification.identify import force_stroke_curve
+    from solenoid_fmu.identification import force_stroke_curve
 
     rec = next(read_recording(p) for p in rig_campaign("") if "force_stroke_1p50" in p)
     both = force_stroke_curve(rec)

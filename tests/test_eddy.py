@@ -8,7 +8,7 @@ import pytest
 
 from solenoid_fmu.cli import main
 from solenoid_fmu.maps import fit_eddy, load_maps
-from solenoid_fmu.measure.recordings import make_recording, write_recording
+from solenoid_fmu.measure import make_recording, write_recording
 from solenoid_fmu.realtime.model import SolenoidModel, load_tables
 
 X_M = 1.5e-3

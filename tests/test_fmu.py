@@ -367,7 +367,7 @@ def test_cli_export(maps_dir, tmp_path, capsys):
 
 def _measured(tab, kind, drive, n=400, h=2e-4):
     """A 'measured' recording made with model.py itself (same semantics as the playback)."""
-    from solenoid_fmu.measure.recordings import make_recording
+    from solenoid_fmu.measure import make_recording
 
     t = h * np.arange(n)
     if drive == "voltage":
@@ -395,7 +395,7 @@ def _measured(tab, kind, drive, n=400, h=2e-4):
 
 @pytest.mark.parametrize(("kind", "drive"), [("voltage_step", "voltage"), ("ramp", "current")])
 def test_cli_simulate_reproduces_a_model_made_recording(fmu_path, tab, tmp_path, kind, drive):
-    from solenoid_fmu.measure.recordings import read_recording, write_recording
+    from solenoid_fmu.measure import read_recording, write_recording
 
     rec = _measured(tab, kind, drive)
     src = write_recording(tmp_path / "measured.csv", rec)
@@ -411,7 +411,7 @@ def test_cli_simulate_reproduces_a_model_made_recording(fmu_path, tab, tmp_path,
 
 
 def test_simulate_needs_a_voltage_column_for_voltage_drive(fmu_path, tab):
-    from solenoid_fmu.measure.recordings import make_recording
+    from solenoid_fmu.measure import make_recording
 
     rec = _measured(tab, "ramp", "current")
     rec = make_recording("force_stroke", "synthetic", rec.time_s, rec.current_A, force_N=rec.force_N,

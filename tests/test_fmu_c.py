@@ -286,7 +286,7 @@ def test_non_positive_resistance_is_refused(md, unzipped):
 
 
 def test_simulate_recording_runs_the_native_fmu(fmu_path, tab, tmp_path):
-    from solenoid_fmu.measure.recordings import read_recording, write_recording
+    from solenoid_fmu.measure import read_recording, write_recording
 
     rec = _measured(tab, "ramp", "current")
     src = write_recording(tmp_path / "measured.csv", rec)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.fmu import build_fmu, simulate_recording
-from solenoid_fmu.measure.recordings import make_recording, write_recording
+from solenoid_fmu.measure import make_recording, write_recording
 from solenoid_fmu.realtime.model import MAX_SUBSTEPS, ModelInputError, SolenoidModel, load_tables
 
 HOSTILE = 'x */ int evil = 1; /* "\\ #include <stdlib.h> //'
@@ -173,7 +173,7 @@ def test_geometry_file_refuses_unknown_keys_wrong_types_and_no_armature(tmp_path
 
 def test_recording_with_an_acquisition_gap_is_refused_naming_the_line(tmp_path):
     from solenoid_fmu.errors import RecordingError
-    from solenoid_fmu.measure.recordings import read_recording
+    from solenoid_fmu.measure import read_recording
 
     t = np.arange(100) * 1e-3
     t[50:] += 1e5  # a 1e5 s gap (it would have made simulate run for hours)
@@ -194,7 +194,7 @@ def test_grids_and_budgets_are_bounded_with_a_message(capsys):
 
 
 def test_flux_on_a_moving_armature_says_the_width_is_motion(tmp_path):
-    from solenoid_fmu.measure.recordings import flux_linkage
+    from solenoid_fmu.measure import flux_linkage
 
     t = np.arange(2000) * 1e-3
     i = np.interp(t, [0, 0.2, 1.0, 1.8, 2.0], [0, 0, 1.0, 0, 0])

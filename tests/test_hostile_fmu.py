@@ -16,7 +16,7 @@ import pytest
 
 from solenoid_fmu.errors import FmuBuildError, MapsError
 from solenoid_fmu.fmu import build_fmu, c_sources
-from solenoid_fmu.measure.recordings import make_recording, write_recording
+from solenoid_fmu.measure import make_recording, write_recording
 from solenoid_fmu.realtime.model import load_tables
 
 REPO = Path(__file__).resolve().parents[1]

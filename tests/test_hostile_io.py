@@ -11,7 +11,7 @@ import pytest
 from solenoid_fmu.cli import main
 from solenoid_fmu.field.geometry import default_geometry_path
 from solenoid_fmu.fileio import OutputError, refuse_overwriting_inputs, require_directory
-from solenoid_fmu.measure.recordings import make_recording, write_recording
+from solenoid_fmu.measure import make_recording, write_recording
 
 
 @pytest.fixture(scope="module")

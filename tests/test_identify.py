@@ -14,10 +14,10 @@ from solenoid_fmu import cli
 from solenoid_fmu.errors import RecordingError, SolenoidError
 from solenoid_fmu.field.geometry import load_geometry
 from solenoid_fmu.field.material import MU_0, bh_curve_from_table, load_material, read_bh_csv
-from solenoid_fmu.identification.identify import (
+from solenoid_fmu.identification import (
     NLOPT_CODES,
+    FluxModel,
     SusceptibilityModel,
-    _FluxModel,
     choose_currents,
     fem_flux,
     fem_force_vs_stroke,
@@ -91,7 +91,7 @@ def test_no_flux_recording_is_a_clear_error():
 def test_adjoint_jacobian_matches_finite_differences():
     geom = load_geometry()
     lit = load_material()
-    fm = _FluxModel(geom, X_ID, [0.3, 1.0, 2.0], lambda p: scaled_curve(lit, p[0], p[1]), 3.0, lit)
+    fm = FluxModel(geom, X_ID, [0.3, 1.0, 2.0], lambda p: scaled_curve(lit, p[0], p[1]), 3.0, lit)
     p = np.array([0.02, 0.2])
     J = fm.jacobian(p)
     h = 1e-3
@@ -204,8 +204,8 @@ def test_demo_campaign_with_hysteresis_and_noise(tmp_path):
 def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
     """Flux recordings at two strokes: the stroke with more recordings is identified, the other
     one is compared in fig. 16 and the JSON (here copies of demo recordings relabelled 2.0 mm)."""
-    from solenoid_fmu.identification.identify import _group_flux, write_report
-    from solenoid_fmu.measure.recordings import read_recording
+    from solenoid_fmu.identification import group_flux, write_report
+    from solenoid_fmu.measure import read_recording
 
     src = sorted(glob.glob(f"{DEMO}/recordings/0[1-4]_flux_*.csv"))
     moved = []
@@ -215,7 +215,7 @@ def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
         q.write_text(text)
         moved.append(q)
     recs = [read_recording(p) for p in [*src, *moved]]
-    main, others = _group_flux(recs)
+    main, others = group_flux(recs)
     assert len(main) == 4 and {float(np.median(r.positions_m())) for r in main} == {X_ID}
     assert len(others) == 1 and abs(float(np.median(others[0][0].positions_m())) - 2.0e-3) < 1e-9
     geom = load_geometry()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.loop.improvement import ImproveError, improve_tables, split_recordings
-from solenoid_fmu.measure.recordings import read_recording
+from solenoid_fmu.measure import read_recording
 
 #: Which residual signal each effect shows in.
 AFFECTED = {"hysteresis": "psi_Wb", "heating": "psi_Wb", "eddy": "psi_Wb", "friction": "force_N"}
@@ -110,7 +110,7 @@ def test_heating_correction_removes_the_eq4_flux_drift(rig_campaign):
     """The rig's heating (C_th 300 J/K, R_th 1 K/W, copper) leaves eq. 4's flux open at the end of a
     closed current cycle; the voltage corrected with the heating model closes it again."""
     from solenoid_fmu.loop.improvement import heating_corrected
-    from solenoid_fmu.measure.recordings import flux_linkage
+    from solenoid_fmu.measure import flux_linkage
 
     heating = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": 0.00393}
     for path in rig_campaign("heating"):

@@ -1,4 +1,4 @@
-"""Tests of solenoid_fmu.measure.recordings: the CSV format v1 (strict reader, exact writer) and eq. 4.
+"""Tests of solenoid_fmu.measure: the CSV format v1 (strict reader, exact writer) and eq. 4.
 
 Every malformed file is written here, in tmp_path, with the line the problem is on known by
 construction. The flux tests use synthetic recordings made from a known Psi(i) curve.
@@ -19,17 +19,18 @@ from hypothesis import strategies as st
 
 from solenoid_fmu.cli import main
 from solenoid_fmu.errors import RecordingError
-from solenoid_fmu.measure import recordings as R
-from solenoid_fmu.measure.recordings import (
+from solenoid_fmu.measure import (
     KINDS,
     Recording,
     commutation_curve,
     flux_linkage,
     make_recording,
     read_recording,
+    reader,
     validate_recording,
     write_recording,
 )
+from solenoid_fmu.measure import format as R
 
 # ---------------------------------------------------------------------------------------------
 # helpers
@@ -344,8 +345,8 @@ def test_thousands_of_bad_lines_are_capped(tmp_path):
     path = write_lines(tmp_path, good_lines(rows=rows))
     problems = validate_recording(path)
     n_bad = 2500
-    assert len(problems) == R.MAX_LISTED_PROBLEMS + 1
-    assert problems[-1].startswith(f"{path}: ... and {n_bad - R.MAX_LISTED_PROBLEMS} more")
+    assert len(problems) == reader.MAX_LISTED_PROBLEMS + 1
+    assert problems[-1].startswith(f"{path}: ... and {n_bad - reader.MAX_LISTED_PROBLEMS} more")
     first = len(GOOD_HEADER) + 2
     assert problems[0].startswith(f"{path}:{first + 1}: non-numeric cell 'x' in column current_A")
     last_line = first + 4999
@@ -441,7 +442,7 @@ def recordings(draw):
         return np.array(draw(st.lists(_tiny_or_any, min_size=n, max_size=n)))
 
     kind = draw(st.sampled_from(KINDS))
-    need = R._REQUIRED_COLUMNS[kind]
+    need = R.REQUIRED_COLUMNS[kind]
     voltage = column() if "voltage_V" in need or draw(st.booleans()) else None
     force = column() if "force_N" in need or draw(st.booleans()) else None
     position_col = column() * 1e-3 if "position_mm" in need or draw(st.booleans()) else None
@@ -458,7 +459,7 @@ def recordings(draw):
             header[key] = draw(_text)
     extra = {}
     for key in draw(st.lists(_name, max_size=2, unique=True)):
-        if key not in R._KNOWN_COLUMNS:
+        if key not in R.KNOWN_COLUMNS:
             extra[key] = column()
     solenoid = draw(_text.filter(bool))
     return Recording(kind=kind, solenoid=solenoid, header=header, time_s=time_s, current_A=column(),
@@ -683,6 +684,6 @@ def test_cli_flux_on_a_broken_file_exits_1_with_the_problem(tmp_path, capsys):
 
 def test_mm_conversion_is_exact():
     for x_m in [1e-3, 2.5e-3, 0.1 + 0.2, 1e-12, 3.3e-3, -0.0, 7.0]:
-        assert R.mm_text_to_m(R._m_to_mm_text(x_m)) == x_m
+        assert R.mm_text_to_m(R.m_to_mm_text(x_m)) == x_m
     assert R.mm_text_to_m("1.5") == 0.0015 and R.mm_text_to_m("2E1") == 0.02
     assert math.isclose(R.mm_text_to_m("0.333"), 0.333e-3, rel_tol=0, abs_tol=0)

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from solenoid_fmu.cli import main
-from solenoid_fmu.measure.recordings import flux_linkage, read_recording
+from solenoid_fmu.measure import flux_linkage, read_recording
 from solenoid_fmu.realtime.model import load_tables
 from solenoid_fmu.rig import (
     CampaignConfig,

@@ -17,7 +17,7 @@ from solenoid_fmu.field.geometry import load_geometry
 from solenoid_fmu.field.material import load_material
 from solenoid_fmu.maps import InlineExecutor, build_maps, default_currents, fit_eddy, i_f_at, load_maps
 from solenoid_fmu.maps.interpolate import FLUX_EXTRAPOLATION_LIMIT
-from solenoid_fmu.measure.recordings import make_recording
+from solenoid_fmu.measure import make_recording
 from solenoid_fmu.pipeline import CAMPAIGN_CURRENT_MARGIN, PRESETS, _maps_grid, maps_current_grid
 
 X_M, I_A, I_PREV_A = 2.787e-3, 0.632, 0.6
@@ -164,7 +164,7 @@ def _eddy_recording_past_the_map(top_Wb, x_m, G_S, peak_factor, fs=10000.0):
 
 def test_eddy_fit_on_flux_just_past_the_map_warns_and_recovers_g(smaps, caplog):
     """Regression: the eddy fit stopped with 'flux linkage ... is outside the map's table' 0.02 % past it."""
-    from solenoid_fmu.measure.recordings import flux_linkage
+    from solenoid_fmu.measure import flux_linkage
 
     top, x, G = smaps.psi_Wb[-1], smaps.x_m[0], 0.02
     # eq. 4 (trapezoid) cuts the triangle's sharp peak by ~0.1 %: scale the peak so the *measured* flux is 0.02 % past

@@ -147,7 +147,7 @@ def test_a_wrong_coil_resistance_gives_a_larger_current_error(setup, good_result
     """The voltage step simulated with R 20 % high (header value) ends at a current 1/1.2 of the measured."""
     import dataclasses
 
-    from solenoid_fmu.measure.recordings import read_recording
+    from solenoid_fmu.measure import read_recording
 
     good, _ = good_result
     f = next(p for p in setup["files"] if "voltage_step" in p.name)

@@ -3,12 +3,12 @@ r"""Axisymmetric nonlinear magnetostatics of a solenoid: flux linkage Psi(i, x) 
 Formulation
 -----------
 The unknown is the flux function :math:`u = r A_\varphi` (second-order Lagrange elements on the
-morphed triangle mesh of :mod:`solenoid_fmu.mesh`); :math:`2\pi u` is the flux through the circle
+morphed triangle mesh of :mod:`solenoid_fmu.field.mesh`); :math:`2\pi u` is the flux through the circle
 of radius r. With :math:`B = |\nabla u| / r`, the energy functional
 
 .. math:: \Pi(u) = 2\pi \iint \left[ r\, w(B) - J u \right] \, dr\, dz, \qquad w(B)=\int_0^B H\,dB'
 
-is strictly convex (the B(H) curve's slopes are bounded, :mod:`solenoid_fmu.material`), and its
+is strictly convex (the B(H) curve's slopes are bounded, :mod:`solenoid_fmu.field.material`), and its
 minimizer solves :math:`-\nabla\cdot(\nu/r\,\nabla u) = J`. Newton's method on
 :math:`\nu(B^2)` with an Armijo line search on :math:`\Pi` converges from any start; a previous
 solution is a warm start. u = 0 on the axis and on the air box (sides listed in
@@ -32,19 +32,17 @@ Sign: the force is positive when it pulls the armature towards the pole (closing
 
 from __future__ import annotations
 
-import json
 import logging
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 from threadpoolctl import threadpool_limits
 
-from ..errors import SolenoidError, SolverError
-from .geometry import Geometry, load_geometry
-from .material import MU_0, NU_0, BHCurve, load_material
+from ..errors import SolverError
+from .geometry import Geometry
+from .linear_solver import SPDSolver
+from .material import NU_0, BHCurve
 from .mesh import MorphMesh, build_mesh
 
 #: Newton settings (tolerances relative to the source norm / the solution norm).
@@ -107,7 +105,7 @@ class _Config:
     """Everything that depends on the gap x: quadrature data on the morphed mesh."""
 
     def __init__(self, solver: Solver, x_m: float):
-        from skfem import Basis, ElementTriP2, MeshTri
+        from skfem import Basis, ElementTriP2, MeshTri  # loaded on first solve: importing the field stays cheaper
 
         mm = solver.mesh
         self.x_m = x_m
@@ -172,7 +170,7 @@ class Solver:
     material : BHCurve
         The steel's B(H) curve (all ``steel`` regions).
     mesh_size : float
-        Mesh-size knob of :func:`solenoid_fmu.mesh.build_mesh` (1 = default accuracy).
+        Mesh-size knob of :func:`solenoid_fmu.field.mesh.build_mesh` (1 = default accuracy).
 
     Notes
     -----
@@ -181,7 +179,7 @@ class Solver:
     """
 
     def __init__(self, geometry: Geometry, material: BHCurve, mesh_size: float = 1.0, mesh: MorphMesh = None):
-        from skfem import Basis, ElementTriP2, MeshTri
+        from skfem import Basis, ElementTriP2, MeshTri  # loaded on first solve: importing the field stays cheaper
 
         self.geometry = geometry
         self.material = material
@@ -247,8 +245,8 @@ class Solver:
         isdir[self.dirichlet] = True
         self._dir_mask = isdir[r] | isdir[c]
         self._dir_diag = np.flatnonzero(isdir[r] & (r == c))
-        self._isdir = isdir
-        self._spd = _SPDSolver(self._indptr, self._indices, n)
+        self.dirichlet_mask = isdir
+        self.linear_solver = SPDSolver(self._indptr, self._indices, n)
 
     def _assemble_source(self, cfg: _Config, density: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(density)
@@ -277,12 +275,14 @@ class Solver:
         w[s] = self.material.energy_density(np.sqrt(b2[s]))
         return w
 
-    def _grad(self, cfg: _Config, u: np.ndarray) -> np.ndarray:
+    def grad(self, cfg: _Config, u: np.ndarray) -> np.ndarray:
+        """Gradient (d/dr, d/dz) of the flux function ``u`` at the quadrature points of ``cfg``,
+        shape (2, elements, points); |B| = |grad u| / r."""
         ue = u[self.dofs]  # (6, nel)
         return np.einsum("ke,kdeq->deq", ue, cfg.G)  # (2, nel, nq)
 
     def _energy(self, cfg: _Config, u: np.ndarray, f: np.ndarray) -> float:
-        g = self._grad(cfg, u)
+        g = self.grad(cfg, u)
         b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r**2
         return float(np.sum(cfg.dx * cfg.r * self._energy_density(b2)) - f @ u)
 
@@ -357,7 +357,7 @@ class Solver:
         f = i_A * cfg.f_coil + cfg.f_fixed
         u = np.zeros(self.ndofs) if u0 is None else np.array(u0, dtype=float)
         u[self.dirichlet] = 0.0
-        fnorm = np.linalg.norm(f[~self._isdir])
+        fnorm = np.linalg.norm(f[~self.dirichlet_mask])
         history = []
         it = 0
         note = ""
@@ -368,15 +368,15 @@ class Solver:
             energy = self._energy(cfg, u, f)
             best = (np.inf, u)
             for it in range(1, NEWTON_MAXIT + 1):
-                K, res = self._tangent(cfg, u, f)
-                rnorm = np.linalg.norm(res[~self._isdir]) / fnorm
+                K, res = self.tangent(cfg, u, f)
+                rnorm = np.linalg.norm(res[~self.dirichlet_mask]) / fnorm
                 history.append(rnorm)
                 if rnorm < NEWTON_RTOL:
                     it -= 1
                     break
                 if rnorm < best[0]:
                     best = (rnorm, u)
-                du = self._spd.solve(K.data, K.indices, K.indptr, -res)
+                du = self.linear_solver.solve(K.data, K.indices, K.indptr, -res)
                 # Armijo backtracking on the convex energy
                 slope = res @ du
                 step = 1.0
@@ -417,8 +417,10 @@ class Solver:
         log.info("FEM point i = %g A, x = %g mm: %s", i_A, x_m * 1e3, note)
         return note
 
-    def _tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
-        g = self._grad(cfg, u)  # (2, nel, nq)
+    def tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
+        """Newton system at ``u`` for the load vector ``f``: the tangent stiffness (CSR, symmetric
+        positive definite, Dirichlet rows set to the identity) and the residual (0 on Dirichlet dofs)."""
+        g = self.grad(cfg, u)  # (2, nel, nq)
         r2 = cfg.r**2
         b2 = (g[0] ** 2 + g[1] ** 2) / r2
         nu, dnu = self._nu(b2)
@@ -432,7 +434,7 @@ class Solver:
         data = np.bincount(self._scatter, weights=K.ravel(), minlength=self._nnz)
         data[self._dir_mask] = 0.0
         data[self._dir_diag] = 1.0
-        res[self._isdir] = 0.0
+        res[self.dirichlet_mask] = 0.0
         A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.ndofs, self.ndofs))
         return A, res
 
@@ -450,7 +452,7 @@ class Solver:
         free = np.isnan(g)
         # distance of free (air) vertices to the armature's vertices, capped by the layer thickness
         arm_v = np.unique(mm.t[:, self.moving_elements])
-        from scipy.spatial import cKDTree
+        from scipy.spatial import cKDTree  # loaded on first use (about 0.2 s)
 
         d, _ = cKDTree(cfg.p[:, arm_v].T).query(cfg.p[:, free].T)
         g[free] = np.clip(1.0 - d / EGGSHELL_M, 0.0, 1.0)
@@ -462,7 +464,7 @@ class Solver:
         ``density`` is the current density per element [A/m^2] of this solve.
         """
         L, dr_q = cfg.velocity_L(vr, vz)
-        g = self._grad(cfg, u)
+        g = self.grad(cfg, u)
         r = cfg.r
         b2 = (g[0] ** 2 + g[1] ** 2) / r**2
         nu, _ = self._nu(b2)
@@ -473,50 +475,6 @@ class Solver:
         u_q = np.einsum("ke,keq->eq", u[self.dofs], cfg.phi)
         integrand = trL[:, None] * (r * w - density[:, None] * u_q) + dr_q * w + r * nu / 2 * db2
         return float(2 * np.pi * np.sum(cfg.dx * integrand))
-
-
-class _SPDSolver:
-    """Direct solver for the SPD Newton systems of one sparsity pattern.
-
-    With ``pypardiso`` (MKL PARDISO, x86_64) the symbolic analysis (fill-reducing ordering) runs
-    once per pattern and each Newton step does only the numeric Cholesky factorization and the
-    solve (~0.05 s for 17k unknowns). Without it, SuperLU in symmetric mode (diagonal pivoting,
-    minimum-degree ordering of A^T + A), several times slower.
-    """
-
-    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
-        self.n = n
-        rows = np.repeat(np.arange(n), np.diff(indptr))
-        self.upper = indices >= rows
-        cnt = np.bincount(rows[self.upper], minlength=n)
-        self.u_indptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int32)
-        self.u_indices = indices[self.upper].astype(np.int32)
-        self._ps = None
-        if _pardiso is not None:
-            self._ps = _pardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
-            self._analysed = False
-
-    def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
-        if self._ps is None:
-            K = sp.csc_matrix((data, indices, indptr), shape=(self.n, self.n))  # symmetric: CSR = CSC^T
-            lu = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-            return lu.solve(b)
-        A = sp.csr_matrix((data[self.upper], self.u_indices, self.u_indptr), shape=(self.n, self.n))
-        A.has_sorted_indices = True
-        if not self._analysed:
-            self._ps.set_phase(11)
-            self._ps._call_pardiso(A, b)
-            self._analysed = True
-        self._ps.set_phase(22)
-        self._ps._call_pardiso(A, b)
-        self._ps.set_phase(33)
-        return self._ps._call_pardiso(A, b)
-
-
-try:  # optional accelerator, see _SPDSolver
-    import pypardiso as _pardiso
-except ImportError:  # pragma: no cover - depends on the platform
-    _pardiso = None
 
 
 # -- module-level conveniences -------------------------------------------------------------------
@@ -579,90 +537,4 @@ def sweep_currents(geometry: Geometry, material: BHCurve, x_m: float, i_A, mesh_
     return out
 
 
-# -- plotting --------------------------------------------------------------------------------------
-def plot_field(solver: Solver, sol: Solution, path, n_lines: int = 30) -> None:
-    """Draw flux lines (contours of u = rA) and |B| over the geometry into a PNG file."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.tri import Triangulation
-
-    cfg = solver.config(sol.x_m)
-    p = cfg.p * 1e3
-    tri = Triangulation(p[0], p[1], solver.mesh.t.T)
-    g = solver._grad(cfg, sol.u)
-    B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r
-    Bel = B.mean(axis=1)
-    fig, ax = plt.subplots(figsize=(6, 8))
-    tpc = ax.tripcolor(tri, facecolors=Bel, cmap="viridis", shading="flat")
-    fig.colorbar(tpc, ax=ax, label="|B| [T]")
-    u_v = sol.u[: solver.mesh.n_vertices]
-    if np.ptp(u_v) > 0:
-        ax.tricontour(tri, u_v, levels=n_lines, colors="w", linewidths=0.5)
-    for reg in solver.geometry.regions:
-        poly = reg.polygon_at(sol.x_m) * 1e3
-        ax.plot(*np.vstack([poly, poly[:1]]).T, "k-", lw=0.6)
-    ax.set_xlim(0, min(40, p[0].max()))
-    d = solver.geometry.domain
-    zc = [reg.polygon_at(sol.x_m)[:, 1] for reg in solver.geometry.regions]
-    zlo, zhi = min(z.min() for z in zc) * 1e3, max(z.max() for z in zc) * 1e3
-    ax.set_ylim(max(d.z_min_m * 1e3, zlo - 8), min(d.z_max_m * 1e3, zhi + 8))
-    ax.set_aspect("equal")
-    ax.set_xlabel("r [mm]")
-    ax.set_ylabel("z [mm]")
-    ax.set_title(
-        f"{solver.geometry.name}: i = {sol.i_A:g} A, x = {sol.x_m * 1e3:g} mm\n"
-        f"Psi = {sol.psi_Wb * 1e3:.2f} mWb, F = {sol.force_N:.2f} N"
-    )
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-# -- command line ----------------------------------------------------------------------------------
-def add_cli(sub) -> None:
-    """Register ``solenoid-fmu solve``."""
-    p = sub.add_parser("solve", help="solve one operating point: flux linkage and force")
-    p.add_argument("--x-mm", type=float, required=True, help="working air gap [mm]")
-    p.add_argument("--i-A", type=float, required=True, help="coil current [A]")
-    p.add_argument("--geometry", help="solenoid TOML (default: packaged PS45)")
-    p.add_argument("--material", help="B(H) CSV H_A_per_m,B_T (default: literature 9SMnPb28)")
-    p.add_argument("--mesh-size", type=float, default=1.0, help="mesh-size scale (default 1.0; 0.5 = finer)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", help="write flux lines and |B| to this PNG")
-    p.set_defaults(func=_cli_solve)
-
-
-def _cli_solve(args) -> int:
-    geom = load_geometry(args.geometry)
-    mat = load_material(args.material)
-    t0 = time.perf_counter()
-    solver = Solver(geom, mat, args.mesh_size)
-    sol = solver.solve(args.i_A, args.x_mm * 1e-3)
-    elapsed = time.perf_counter() - t0
-    plot_path = None
-    if args.plot:
-        from pathlib import Path
-
-        plot_path = Path(args.plot)
-        if plot_path.is_dir():
-            raise SolenoidError(f"--plot {args.plot}: is a directory; give a .png file name")
-        if plot_path.suffix.lower() != ".png":
-            plot_path = plot_path.with_name(plot_path.name + ".png")  # what matplotlib would write anyway
-        plot_path.parent.mkdir(parents=True, exist_ok=True)
-        plot_field(solver, sol, plot_path)
-    if args.json:
-        print(json.dumps(sol.as_dict()))
-    else:
-        print(f"{geom.name}: i = {args.i_A:g} A, x = {args.x_mm:g} mm  ({elapsed:.2f} s incl. mesh)")
-        print(f"  Psi                = {sol.psi_Wb * 1e3:.4f} mWb")
-        print(f"  F (co-energy)      = {sol.force_coenergy_N:.3f} N")
-        print(f"  F (Maxwell stress) = {sol.force_stress_N:.3f} N")
-        print(f"  Newton iterations  = {sol.newton_iterations}")
-        if plot_path is not None:
-            print(f"  field plot: {plot_path}")
-    return 0
-
-
-__all__ = ["Solver", "Solution", "solve_point", "sweep_currents", "get_solver", "plot_field", "MU_0"]
+__all__ = ["Solver", "Solution", "solve_point", "sweep_currents", "get_solver"]

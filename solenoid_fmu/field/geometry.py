@@ -371,7 +371,7 @@ def check_geometry(geom: Geometry) -> list[str]:
     and at r >= 0; no two regions overlapping; the moving regions collide with nothing over the
     whole stroke; a coil region with turns > 0.
     """
-    from shapely.geometry import Polygon, box
+    from shapely.geometry import Polygon, box  # loaded when a geometry is checked, not on import
     from shapely.validation import explain_validity
 
     problems: list[str] = []

@@ -256,7 +256,7 @@ def bh_curve_from_table(
     smoothing : float
         Weight of the second-difference penalty on the reluctivity knots (relative).
     """
-    from scipy.optimize import lsq_linear
+    from scipy.optimize import lsq_linear  # heavy (about 0.5 s): loaded on first use
 
     H = np.asarray(H, dtype=float).ravel()
     B = np.asarray(B, dtype=float).ravel()

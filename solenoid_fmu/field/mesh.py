@@ -15,7 +15,7 @@ gap x every vertex moves by ``(x - x_ref) * (dr_dx, dz_dx)``:
 
 The vertex positions are affine in x with a fixed connectivity: Psi and the force are smooth
 functions of x with no remeshing noise, and the co-energy can be differentiated with respect to x
-exactly on the discrete level (see :mod:`solenoid_fmu.fem`). The knots must keep their order over
+exactly on the discrete level (see :mod:`solenoid_fmu.field.fem`). The knots must keep their order over
 the stroke (checked, MeshError otherwise), and elements never invert: signed areas are quadratic
 in x, checked at both ends of the stroke and at their minimum.
 
@@ -102,7 +102,7 @@ class MorphMesh:
 
 def _pslg(geom: Geometry, x_ref: float):
     """Vertices, segments (with markers) and region seeds of the planar straight-line graph."""
-    from shapely.geometry import Polygon
+    from shapely.geometry import Polygon  # loaded when a mesh is built, not on import
 
     d = geom.domain
     polys = []
@@ -190,7 +190,7 @@ def build_mesh(geom: Geometry, mesh_size: float = 1.0, x_ref_m: float | None = N
     -------
     MorphMesh
     """
-    import triangle
+    import triangle  # loaded when a mesh is built, not on import
 
     if not mesh_size > 0:
         raise MeshError(f"mesh_size must be > 0, got {mesh_size!r}")

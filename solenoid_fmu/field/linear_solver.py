@@ -1,0 +1,56 @@
+"""The direct solver of the FEM's Newton systems: symmetric positive definite, one sparsity pattern."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+__all__ = ["SPDSolver", "LINEAR_SOLVER"]
+
+
+class SPDSolver:
+    """Direct solver for the SPD Newton systems of one sparsity pattern.
+
+    With ``pypardiso`` (MKL PARDISO, x86_64) the symbolic analysis (fill-reducing ordering) runs
+    once per pattern and each Newton step does only the numeric Cholesky factorization and the
+    solve (~0.05 s for 17k unknowns). Without it, SuperLU in symmetric mode (diagonal pivoting,
+    minimum-degree ordering of A^T + A), several times slower.
+    """
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
+        self.n = n
+        rows = np.repeat(np.arange(n), np.diff(indptr))
+        self.upper = indices >= rows
+        cnt = np.bincount(rows[self.upper], minlength=n)
+        self.u_indptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int32)
+        self.u_indices = indices[self.upper].astype(np.int32)
+        self._ps = None
+        if _pardiso is not None:
+            self._ps = _pardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
+            self._analysed = False
+
+    def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
+        if self._ps is None:
+            K = sp.csc_matrix((data, indices, indptr), shape=(self.n, self.n))  # symmetric: CSR = CSC^T
+            lu = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            return lu.solve(b)
+        A = sp.csr_matrix((data[self.upper], self.u_indices, self.u_indptr), shape=(self.n, self.n))
+        A.has_sorted_indices = True
+        if not self._analysed:
+            self._ps.set_phase(11)
+            self._ps._call_pardiso(A, b)
+            self._analysed = True
+        self._ps.set_phase(22)
+        self._ps._call_pardiso(A, b)
+        self._ps.set_phase(33)
+        return self._ps._call_pardiso(A, b)
+
+
+try:  # optional accelerator, see SPDSolver
+    import pypardiso as _pardiso
+except ImportError:  # pragma: no cover - depends on the platform
+    _pardiso = None
+
+#: The direct solver of the Newton systems on this machine: "MKL PARDISO" or "SuperLU".
+LINEAR_SOLVER = "MKL PARDISO" if _pardiso is not None else "SuperLU"

@@ -1,0 +1,98 @@
+"""Identify B(H) from a campaign's recordings (the pipeline's entry point): pick the flux
+recordings, build the measured commutation curve, fit, write the curve files and the report."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+from ..errors import RecordingError
+from ..measure import commutation_curve, read_recording
+from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
+from .flux_model import as_curve, as_geometry
+from .io import write_curve_files
+from .measured import absolute_flux, group_flux, hysteresis_half_width
+from .report import write_report
+from .result import IdentificationResult
+
+__all__ = ["identify_from_recordings"]
+
+
+def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_size=None, out_csv=None,
+                             report_dir=None, progress=True, method: str = "gn", n_currents: int = DEFAULT_N_CURRENTS,
+                             **kwargs) -> IdentificationResult:
+    """Identify B(H) from test-rig recordings (the pipeline's entry point).
+
+    Parameters
+    ----------
+    paths : iterable of path
+        Recordings (CSV, format v1) of any kinds; the ``flux`` ones (by header kind) are used: the
+        stroke with the most of them is identified, flux at other strokes and ``force_stroke``
+        recordings validate (report). Other kinds are ignored.
+    geometry : Geometry or path, optional
+        Default: packaged PS45.
+    start_material : BHCurve or path, optional
+        Start curve (default: the literature curve).
+    mesh_size : float, optional
+        FEM mesh size (default :data:`DEFAULT_MESH_SIZE`).
+    out_csv : path, optional
+        Write the curve there (+ ``.bh`` and ``.tab`` beside it).
+    report_dir : path, optional
+        Write figures (paper figs. 10, 11, 15-17) and ``identification.json``.
+    progress : bool
+        Progress bar on stderr.
+    method : {"gn", "auglag"}
+    n_currents : int
+        Currents of the measured commutation curve used by the fit (:func:`choose_currents`).
+    **kwargs
+        Passed to :func:`identify_bh`.
+
+    Raises
+    ------
+    RecordingError
+        No ``flux`` recording among ``paths`` (or unreadable recordings).
+    """
+    paths = [Path(p) for p in paths]
+    recs = [read_recording(p) for p in paths]
+    flux = [r for r in recs if r.kind == "flux"]
+    if not flux:
+        raise RecordingError("identify", [f"no 'flux' recording among {len(paths)} file(s): "
+                                          + ", ".join(f"{p.name} ({r.kind})"
+                                                      for p, r in zip(paths, recs, strict=True))])
+    flux, unusable = absolute_flux(flux)
+    if not flux:
+        raise RecordingError("identify", unusable)
+    for why in unusable:
+        print(f"identify: left out {why}", file=sys.stderr)
+    geom = as_geometry(geometry)
+    start = as_curve(start_material)
+    mesh_size = DEFAULT_MESH_SIZE if mesh_size is None else float(mesh_size)
+    main, others = group_flux(flux)
+    cc = commutation_curve(main)
+    i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
+    sigma = hysteresis_half_width(cc, i_sel)
+    bar = None
+    cb = None
+    if progress:
+        bar = tqdm(desc=f"identify B(H) ({method})", unit="sweep", file=sys.stderr)
+
+        def cb(n, rms):
+            bar.update(1)
+            bar.set_postfix_str(f"flux RMS {rms * 100:.3f} %")
+    try:
+        res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method=method,
+                          progress=cb, sigma_Wb=sigma, **kwargs)
+    finally:
+        if bar is not None:
+            bar.close()
+    res.extra["recordings"] = [str(r.path) for r in main]
+    res.extra["measured_commutation"] = {"i_A": [float(v) for v in cc.i_A], "psi_Wb": [float(v) for v in cc.psi_Wb]}
+    if out_csv is not None:
+        write_curve_files(res, out_csv, sources=[r.path for r in main])
+    if report_dir is not None:
+        write_report(res, report_dir, geometry=geom, other_flux=others,
+                     force_recordings=[r for r in recs if r.kind == "force_stroke"])
+    return res
+

@@ -1,0 +1,477 @@
+"""Flux linkage from voltage and current (paper eq. 4), and the commutation curve of several recordings.
+
+:func:`flux_linkage` integrates ``Psi(t) = int (U - R i) dt`` (paper eq. 4) with what real data
+needs: the coil resistance from the header or estimated (plateaus, else flux closure), removal of
+the voltage offset seen in the zero-current rest phases (with linear drift when there is a rest
+phase at both ends), the split of triangular excitations into ascending and descending branches
+(:mod:`solenoid_fmu.measure.branches`), and the commutation curve (mean of the two branches, the
+paper's initial curve) with the hysteresis width. :func:`commutation_curve` merges several
+``flux`` recordings at one stroke.
+
+SciPy's submodules are imported where they are used: each takes 0.2-0.8 s to load, and reading or
+writing a recording (the rig, the FMU's input) needs none of them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import RecordingError
+from .branches import FluxBranch, peak_curves, split_branches
+from .format import Recording
+
+__all__ = ["FluxResult", "flux_linkage", "CommutationCurve", "commutation_curve"]
+
+
+@dataclass
+class FluxResult:
+    """Flux linkage of one recording (paper eq. 4) and what follows from it.
+
+    Attributes
+    ----------
+    time_s, current_A : numpy.ndarray, shape (n,)
+        The recording's time [s] and current [A] (less the current offset, if one was removed).
+    psi_Wb : numpy.ndarray, shape (n,)
+        Flux linkage per sample [Wb], zero at the first sample.
+    resistance_ohm : float
+        Coil resistance used [ohm].
+    resistance_source : str
+        ``"header"`` (coil_resistance_ohm), ``"given"`` (argument) or ``"estimated"``.
+    resistance_method : str
+        How it was obtained: ``"header"``, ``"given"``, ``"plateau"`` (U/i where the current
+        holds still) or ``"closure"`` (Psi back to its start value); see :func:`flux_linkage`.
+    offset_V : float
+        Mean voltage offset removed over the recording [V].
+    offset_drift_V_per_s : float
+        Linear drift of that offset [V/s] (0 unless there are rest phases at both ends).
+    current_offset_A : float
+        Current-sensor offset removed [A] (0 unless significant in the rest phases).
+    branches : list of FluxBranch
+        Ascending and descending branch per current peak, in time order.
+    peak_current_A : float
+        Highest current of the excitation [A].
+    psi_at_peak_Wb : float
+        Flux linkage at the highest current peak [Wb].
+    commutation_i_A, commutation_psi_Wb : numpy.ndarray, shape (k,)
+        Commutation curve Psi(i): mean of ascending and descending branch, averaged over the
+        peaks that reach each current level [A], [Wb]. Empty without a peak.
+    hysteresis_width_Wb : float
+        Largest Psi difference between descending and ascending branch at equal current [Wb]
+        (NaN without a peak).
+    hysteresis_mean_width_Wb : float
+        Mean of that difference over the current grid [Wb].
+    notes : list of str
+        Warnings (no rest phase, resistance from closure, ...).
+    starts_at_rest : bool
+        The current is zero (within the rest threshold) at the first sample. Only then is
+        ``psi_Wb`` (zero at the first sample) an absolute flux linkage of a demagnetized coil;
+        otherwise it is the flux *change* since the first sample, with an unknown integration
+        constant Psi(0).
+    offset_measured : bool
+        A zero-current rest phase at the start or end gave the voltage offset. Without one, the
+        integral drifts by (unknown offset) x t and only its part orthogonal to a linear trend
+        carries information.
+    offset_uncertainty_Wb : float
+        What the voltage offset's own uncertainty can make of the flux by the end of the
+        recording [Wb]: the standard error of the rest phases' mean voltage times the duration
+        (infinite without a usable rest). Flux differences smaller than this, growing linearly
+        with time, are not measured.
+    """
+
+    time_s: np.ndarray
+    current_A: np.ndarray
+    psi_Wb: np.ndarray
+    resistance_ohm: float
+    resistance_source: str
+    resistance_method: str
+    offset_V: float
+    offset_drift_V_per_s: float
+    current_offset_A: float
+    branches: list[FluxBranch]
+    peak_current_A: float
+    psi_at_peak_Wb: float
+    commutation_i_A: np.ndarray
+    commutation_psi_Wb: np.ndarray
+    hysteresis_width_Wb: float
+    hysteresis_mean_width_Wb: float
+    notes: list[str] = field(default_factory=list)
+    starts_at_rest: bool = True
+    offset_measured: bool = True
+    offset_uncertainty_Wb: float = 0.0
+
+    def summary(self) -> dict:
+        """The CLI's JSON object: numbers in SI, NaN as None."""
+        def num(v):
+            return None if v is None or not math.isfinite(v) else float(v)
+        return {
+            "resistance_ohm": num(self.resistance_ohm),
+            "resistance_source": self.resistance_source,
+            "resistance_method": self.resistance_method,
+            "offset_V": num(self.offset_V),
+            "offset_drift_V_per_s": num(self.offset_drift_V_per_s),
+            "current_offset_A": num(self.current_offset_A),
+            "psi_at_peak_Wb": num(self.psi_at_peak_Wb),
+            "peak_current_A": num(self.peak_current_A),
+            "hysteresis_width_Wb": num(self.hysteresis_width_Wb),
+            "hysteresis_mean_width_Wb": num(self.hysteresis_mean_width_Wb),
+            "n_peaks": len(self.branches) // 2,
+            "notes": list(self.notes),
+            "starts_at_rest": self.starts_at_rest,
+            "offset_measured": self.offset_measured,
+            "offset_uncertainty_Wb": num(self.offset_uncertainty_Wb),
+        }
+
+
+def _noise_std(y: np.ndarray) -> float:
+    """Robust white-noise standard deviation of a signal (MAD of second differences)."""
+    if y.size < 5:
+        return 0.0
+    d2 = np.diff(y, 2)
+    mad = np.median(np.abs(d2 - np.median(d2)))
+    return float(1.4826 * mad / math.sqrt(6.0))
+
+
+def _smooth(y: np.ndarray, k: int) -> np.ndarray:
+    from scipy.ndimage import uniform_filter1d  # heavy: see the module docstring
+
+    return y if k <= 1 else uniform_filter1d(y, size=k, mode="nearest")
+
+
+def _rest_runs(i_s: np.ndarray, thr_A: float, min_len: int) -> tuple[slice | None, slice | None]:
+    """Zero-current rest phases at the start and end.
+
+    The start phase loses its last 5 % (the excitation begins); of the end phase only the second
+    half is kept, so that induced voltages still decaying after the excitation (eddy currents)
+    do not bias the offset.
+    """
+    active = np.abs(i_s) > thr_A
+    if not active.any():
+        return None, None
+    first = int(np.argmax(active))
+    last = int(active.size - 1 - np.argmax(active[::-1]))
+    head = tail = None
+    if first >= min_len:
+        head = slice(0, first - max(1, first // 20))
+    n_tail = active.size - 1 - last
+    if n_tail >= min_len:
+        tail = slice(last + 1 + max(1, n_tail // 2), active.size)
+    return head, tail
+
+
+def _stationary(u: np.ndarray, u_scale: float) -> bool:
+    """True when the two halves of a rest phase's voltage agree within 5 standard errors or within
+    0.1 % of the recording's largest voltage ``u_scale`` [V] (a slow offset drift of the DAQ).
+
+    A rest phase right after an excitation may still carry an induced voltage that decays (eddy
+    currents, a hysteresis creeping to remanence): such a phase does not give the offset.
+    """
+    n = u.size // 2
+    if n < 4:
+        return True
+    a, b = u[:n], u[-n:]
+    se = math.sqrt((float(np.var(a)) + float(np.var(b))) / n)
+    return abs(float(np.mean(a)) - float(np.mean(b))) <= max(5.0 * se, 1e-3 * u_scale, 1e-12)
+
+
+def _offset_model(t, u, head, tail):
+    """Voltage offset (a, b, t0, n, se): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V]
+    over the ``n`` (0-2) rest phases used; ``se`` [V] the larger standard error of those means.
+
+    U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
+    A rest phase whose voltage is still settling (:func:`_stationary`) is not used.
+    """
+    from scipy.stats import trim_mean  # heavy: see the module docstring
+
+    anchors = []
+    se = 0.0
+    for sl in (head, tail):
+        if sl is not None and sl.stop - sl.start > 0 and _stationary(u[sl], float(np.max(np.abs(u)))):
+            anchors.append((float(np.median(t[sl])), float(trim_mean(u[sl], 0.1))))
+            se = max(se, float(np.std(u[sl])) / math.sqrt(sl.stop - sl.start))
+    if not anchors:
+        return 0.0, 0.0, float(t[0]), 0, math.inf
+    if len(anchors) == 1:
+        return anchors[0][1], 0.0, anchors[0][0], 1, se
+    (t0, a0), (t1, a1) = anchors
+    return a0, (a1 - a0) / (t1 - t0), t0, 2, se
+
+
+def _plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
+    """Boolean mask of settled samples on non-zero current plateaus (second half of each run)."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d  # heavy: see the module docstring
+
+    band = max(10.0 * sigma_s, 1e-3 * i_max)
+    span = maximum_filter1d(i_s, min_len, mode="nearest") - minimum_filter1d(i_s, min_len, mode="nearest")
+    still = (span < band) & (np.abs(i_s) > 0.1 * i_max)
+    mask = np.zeros_like(still)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], still.astype(np.int8), [0]))))
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        if stop - start >= min_len:
+            mask[(start + stop) // 2: stop] = True
+    return mask
+
+
+def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_points: int = 101) -> FluxResult:
+    """Flux linkage Psi(t) from voltage and current, and Psi(i) of triangular excitations.
+
+    Parameters
+    ----------
+    rec : Recording
+        A recording with a ``voltage_V`` column (any kind; ``flux`` and ``eddy`` have triangles).
+    resistance_ohm : float, optional
+        Coil resistance [ohm]; overrides the header.
+    n_points : int
+        Points of the current grid of the commutation curve (0 to the highest peak).
+
+    Returns
+    -------
+    FluxResult
+
+    Raises
+    ------
+    RecordingError
+        No voltage column; no resistance in the header and none can be estimated.
+
+    Notes
+    -----
+    Paper eq. (4): ``Psi(t) = int_0^t (U - R i - U_off) dt`` by cumulative trapezoid.
+
+    * Resistance: the argument, else header ``coil_resistance_ohm``, else estimated by least
+      squares ``R = sum(u i) / sum(i^2)`` over the settled second half of every current plateau
+      (|i| > 10 % of the peak, held for >= 50 ms); without a plateau, from flux closure: the R
+      that makes Psi at the end equal Psi at the start (needs a closed excitation, assumes no
+      remanence is left).
+    * Offset: the 10 %-trimmed mean of U over the zero-current rest phases at the start and at
+      the end (each at least 10 ms; of the end phase only its second half, after induced
+      voltages have decayed); with both, linear drift between them; with none, no offset is
+      removed (a note says so). Rest: ``|i| < max(5 sigma_i, 0.2 % of the peak)``. A mean
+      current in the rest phases is removed as a current-sensor offset only when it exceeds five
+      standard errors (otherwise it would only add noise times R to the integral).
+    * Branches: peaks of the (lightly smoothed) current with a prominence of at least 20 % of the
+      highest current; each peak gives an ascending branch (from the preceding valley) and a
+      descending one (to the next valley). On each branch Psi is averaged in current bins and
+      interpolated onto the grid; the commutation curve is the mean of the two branches,
+      averaged over the peaks reaching each level. Only positive current peaks are analysed.
+    """
+    if rec.voltage_V is None:
+        raise RecordingError(rec._where(), ["no voltage_V column: the flux linkage needs the coil voltage"])
+    if n_points < 3:
+        raise RecordingError(rec._where(), [f"n_points must be >= 3, got {n_points}"])
+    t = rec.time_s
+    u = rec.voltage_V
+    i = rec.current_A
+    n = t.size
+    notes: list[str] = []
+    dt = float(np.median(np.diff(t)))
+    k_smooth = max(1, int(round(1e-3 / dt)))
+    i_s = _smooth(i, k_smooth)
+    sigma_i = _noise_std(i)
+    i_max = float(np.max(np.abs(i_s)))
+    if i_max <= 0:
+        raise RecordingError(rec._where(), ["the current is zero throughout: no flux to compute"])
+    thr = max(5.0 * sigma_i, 2e-3 * i_max)
+    min_rest = max(10, int(round(10e-3 / dt)))
+    head, tail = _rest_runs(i_s, thr, min_rest)
+    if head is None and tail is None:
+        notes.append("no zero-current rest phase at the start or end: no voltage offset removed")
+
+    if resistance_ohm is not None:
+        if not (math.isfinite(resistance_ohm) and resistance_ohm > 0):
+            raise RecordingError(rec._where(), [f"resistance must be > 0 ohm, got {resistance_ohm!r}"])
+        R, method = float(resistance_ohm), "given"
+    elif rec.coil_resistance_ohm is not None:
+        R, method = rec.coil_resistance_ohm, "header"
+    else:
+        R, method = None, None
+
+    # voltage offset (with drift) from the rest phases; current-sensor offset only if significant
+    a, b, t0, n_anchors, offset_se = _offset_model(t, u, head, tail)
+    if n_anchors == 0 and (head is not None or tail is not None):
+        notes.append("the zero-current rest phases still carry a settling induced voltage: no voltage offset "
+                     "removed")
+    offset = a + b * (t - t0)
+    uc = u - offset
+    i_off = 0.0
+    rest = np.concatenate([np.arange(n)[sl] for sl in (head, tail) if sl is not None] or [np.empty(0, int)])
+    if rest.size >= 2:
+        mean_rest = float(np.mean(i[rest]))
+        stderr = max(float(np.std(i[rest])), 1e-9) / math.sqrt(rest.size)
+        if abs(mean_rest) > 5.0 * stderr:
+            i_off = mean_rest
+            notes.append(f"current-sensor offset of {i_off * 1e3:.3f} mA in the rest phases removed")
+    ic = i - i_off
+
+    if R is None:
+        k_plateau = max(5, 2 * k_smooth)
+        plateau = _plateaus(_smooth(ic, k_plateau), sigma_i / math.sqrt(k_plateau), i_max,
+                            max(20, int(round(50e-3 / dt))))
+        closed = abs(float(i_s[-1] - i_s[0])) <= thr
+        R_est = math.nan
+        if plateau.any():
+            R_est = float(np.sum(uc[plateau] * ic[plateau]) / np.sum(ic[plateau] ** 2))
+            method = "plateau"
+        elif closed:
+            q_A_s = float(np.trapezoid(ic, t))
+            if abs(q_A_s) > 1e-12:
+                R_est = float(np.trapezoid(uc, t)) / q_A_s
+                method = "closure"
+                notes.append("resistance from flux closure (assumes Psi returns to its start value)")
+        if method is None or not (math.isfinite(R_est) and R_est > 0):
+            raise RecordingError(rec._where(), [
+                "no coil resistance: the header has no coil_resistance_ohm, the current has no plateau "
+                "to estimate it from, and the excitation does not return to its start "
+                "(give --resistance-ohm or add '# coil_resistance_ohm: ...')"])
+        R = R_est
+
+    from scipy.integrate import cumulative_trapezoid  # heavy: see the module docstring
+
+    psi = cumulative_trapezoid(uc - R * ic, t, initial=0.0)
+    offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
+    i, i_s = ic, i_s - i_off
+
+    if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
+        notes.append(f"the armature moves by {float(np.ptp(rec.position_m)) * 1e3:.4g} mm during the recording: Psi "
+                     "changes with the position too, so the branches and the 'hysteresis width' include motion "
+                     "and are not a property of the steel")
+    if abs(float(i_s[0])) > thr:
+        notes.append(f"the recording starts energized ({float(i_s[0]):.4g} A): Psi is the change since the "
+                     "first sample (its integration constant Psi(0) is not measured)")
+    branches = split_branches(i, i_s, psi, thr, k_smooth)
+    grid = np.linspace(0.0, max((br.peak_A for br in branches), default=0.0), n_points)
+    mean_curves, widths = peak_curves(branches, grid)
+    if mean_curves:
+        stack = np.vstack(mean_curves)
+        with np.errstate(invalid="ignore"):
+            count = np.sum(np.isfinite(stack), axis=0)
+            merged = np.where(count > 0, np.nansum(stack, axis=0) / np.maximum(count, 1), np.nan)
+        keep = np.isfinite(merged)
+        com_i, com_psi = grid[keep], merged[keep]
+        all_w = np.concatenate([w[np.isfinite(w)] for w in widths])
+        width_max = float(np.max(np.abs(all_w))) if all_w.size else math.nan
+        width_mean = float(np.mean(np.abs(all_w))) if all_w.size else math.nan
+        top = max(range(len(branches)), key=lambda j: branches[j].peak_A)
+        p = branches[top].stop - 1 if branches[top].direction == "ascending" else branches[top].start
+        lo, hi = max(0, p - k_smooth), min(n, p + k_smooth + 1)
+        psi_peak = float(np.mean(psi[lo:hi]))
+        peak_A = branches[top].peak_A
+    else:
+        com_i = com_psi = np.empty(0)
+        width_max = width_mean = math.nan
+        p = int(np.argmax(i_s))
+        psi_peak, peak_A = float(psi[p]), float(i_s[p])
+        notes.append("no current peak found: no branches, commutation curve or hysteresis width")
+    return FluxResult(time_s=t, current_A=i, psi_Wb=psi, resistance_ohm=float(R),
+                      resistance_source=method if method in ("header", "given") else "estimated",
+                      resistance_method=method,
+                      offset_V=offset_mean, offset_drift_V_per_s=float(b),
+                      current_offset_A=i_off, branches=branches,
+                      peak_current_A=float(peak_A), psi_at_peak_Wb=psi_peak, commutation_i_A=com_i,
+                      commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
+                      hysteresis_mean_width_Wb=width_mean, notes=notes,
+                      starts_at_rest=bool(abs(float(i_s[0])) <= thr),
+                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]))
+
+
+@dataclass
+class CommutationCurve:
+    """Measured commutation curve Psi(i) at one stroke, merged from several ``flux`` recordings.
+
+    Attributes
+    ----------
+    i_A : numpy.ndarray, shape (k,)
+        Current grid [A] (points covered by at least one recording).
+    psi_Wb : numpy.ndarray, shape (k,)
+        Mean of ascending and descending branch, averaged over the peaks reaching each level [Wb].
+    n_sources : numpy.ndarray of int, shape (k,)
+        How many peaks (over all recordings) contribute at each current.
+    position_m : float
+        The common working gap x [m].
+    peak_currents_A : list of float
+        The peaks of the merged excitations [A].
+    results : list of FluxResult
+        The per-recording flux results.
+    """
+
+    i_A: np.ndarray
+    psi_Wb: np.ndarray
+    n_sources: np.ndarray
+    position_m: float
+    peak_currents_A: list[float]
+    results: list[FluxResult]
+
+
+def commutation_curve(recordings: list[Recording], n_points: int = 101,
+                      resistance_ohm: float | None = None) -> CommutationCurve:
+    """Merge ``flux`` recordings at one stroke (different peaks) into one measured Psi(i) curve.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+        ``flux`` recordings of one solenoid at one working gap (within 1 um).
+    n_points : int
+        Points of the current grid from 0 to the highest peak.
+    resistance_ohm : float, optional
+        Coil resistance [ohm] for every recording (default: each one's header, else estimated).
+
+    Returns
+    -------
+    CommutationCurve
+
+    Raises
+    ------
+    RecordingError
+        No recordings, a kind other than ``flux``, different solenoids or strokes, no peak, a
+        recording that starts energized or has no zero-current rest (its eq.-4 flux is not absolute).
+
+    Notes
+    -----
+    Each current level is the average of the branch means of all peaks (of all recordings)
+    that reach it, so low levels use every recording and high levels only the high peaks.
+    """
+    if not recordings:
+        raise RecordingError("commutation_curve", ["no recordings given"])
+    problems = []
+    positions = []
+    for rec in recordings:
+        if rec.kind != "flux":
+            problems.append(f"{rec._where()}: kind {rec.kind!r}, commutation curves need 'flux' recordings")
+            continue
+        x = rec.positions_m()
+        if float(np.ptp(x)) > 1e-6:
+            problems.append(f"{rec._where()}: the stroke moves by {np.ptp(x) * 1e3:.4f} mm "
+                            "during the recording")
+        positions.append(float(np.median(x)))
+    names = {rec.solenoid for rec in recordings}
+    if len(names) > 1:
+        problems.append(f"recordings of different solenoids: {', '.join(sorted(names))}")
+    if positions and max(positions) - min(positions) > 1e-6:
+        problems.append("recordings at different strokes: "
+                        + ", ".join(f"{x * 1e3:.4f} mm" for x in positions))
+    if problems:
+        raise RecordingError("commutation_curve", problems)
+    results = [flux_linkage(rec, resistance_ohm, n_points=n_points) for rec in recordings]
+    for rec, res in zip(recordings, results, strict=True):
+        if not res.starts_at_rest:
+            problems.append(f"{rec._where()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "
+                            "up to the integration constant Psi(0); a flux recording must start at zero current")
+        elif not res.offset_measured:
+            problems.append(f"{rec._where()}: no zero-current rest at the start or end: the voltage offset of "
+                            "eq. 4 cannot be measured (add a rest of >= 10 ms)")
+    if problems:
+        raise RecordingError("commutation_curve", problems)
+    branches = [br for res in results for br in res.branches]
+    if not branches:
+        raise RecordingError("commutation_curve", ["no current peak in any recording"])
+    grid = np.linspace(0.0, max(br.peak_A for br in branches), n_points)
+    means, _ = peak_curves(branches, grid)
+    stack = np.vstack(means)
+    count = np.sum(np.isfinite(stack), axis=0)
+    keep = count > 0
+    merged = np.nansum(stack[:, keep], axis=0) / count[keep]
+    return CommutationCurve(i_A=grid[keep], psi_Wb=merged, n_sources=count[keep].astype(np.int64),
+                            position_m=float(np.median(positions)),
+                            peak_currents_A=[br.peak_A for br in branches[::2]], results=results)
+
