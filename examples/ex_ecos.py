@@ -12,15 +12,20 @@ the last flux linkage and force. ``tests/test_importers.py`` compares them with 
 ``drive_mode`` is an FMI Integer (1 voltage, 2 current): Ecos ignores Enumeration variables. Start
 values go in as a named parameter set, applied while the FMU initializes. The pythonfmu FMU runs
 here because this Python process has libpython loaded already; in a C++ host start it with
-``LD_PRELOAD`` (see the README, "Which export to use when").
+``LD_PRELOAD`` (see the README, "Which export to use when"). ``run_ecos(..., remote=True)`` runs the
+FMU in Ecos's own C++ host process (``proxyfmu``): start that Python with :func:`remote_env`'s
+environment, as ``tests/test_importers.py`` does.
 """
 
 from __future__ import annotations
 
 import ctypes
 import importlib.metadata
+import os
+import shutil
 import site
 import sys
+import sysconfig
 from pathlib import Path
 
 from solenoid_fmu.fmu import build_fmu
@@ -58,7 +63,32 @@ def load_ecospy():
     return ecospy
 
 
-def run_ecos(fmu_path, drive_mode: int, u: float, x_m: float, stop_s: float, step_s: float = 1e-4) -> dict:
+def remote_env(bin_dir) -> dict:
+    """Environment for a Python process whose Ecos runs FMUs in ``proxyfmu`` processes (C++ hosts).
+
+    ``bin_dir`` gets an executable copy of ecospy's ``proxyfmu`` (the 0.7.2 wheel installs it without
+    the execute bit) and goes first on ``PATH``; ``libtbb.so.12``'s folder goes on ``LD_LIBRARY_PATH``;
+    this Python's libpython goes in ``LD_PRELOAD`` and its ``site-packages`` on ``PYTHONPATH``, so a
+    pythonfmu FMU finds libpython and numpy in the C++ host.
+    """
+    ecospy = load_ecospy()
+    bin_dir = Path(bin_dir)
+    bin_dir.mkdir(parents=True, exist_ok=True)
+    proxy = Path(shutil.copy2(Path(ecospy.__file__).parent / "binaries" / "proxyfmu", bin_dir / "proxyfmu"))
+    proxy.chmod(0o755)
+    env = dict(os.environ)
+    env["PATH"] = os.pathsep.join([str(bin_dir), env.get("PATH", "")])
+    libtbb = libtbb_path()
+    if libtbb is not None:
+        env["LD_LIBRARY_PATH"] = os.pathsep.join(filter(None, [str(libtbb.parent), env.get("LD_LIBRARY_PATH")]))
+    libpython = Path(sysconfig.get_config_var("LIBDIR") or "", sysconfig.get_config_var("INSTSONAME") or "")
+    env["LD_PRELOAD"] = ":".join(filter(None, [str(libpython), env.get("LD_PRELOAD")]))
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [*site.getsitepackages(), env.get("PYTHONPATH")]))
+    return env
+
+
+def run_ecos(fmu_path, drive_mode: int, u: float, x_m: float, stop_s: float, step_s: float = 1e-4,
+             remote: bool = False) -> dict:
     """Last ``psi_Wb`` [Wb] and ``F_N`` [N] of the FMU in Ecos with inputs held.
 
     Parameters
@@ -75,12 +105,15 @@ def run_ecos(fmu_path, drive_mode: int, u: float, x_m: float, stop_s: float, ste
         End time [s]; the run takes ``round(stop_s / step_s)`` fixed steps.
     step_s : float
         Communication step [s].
+    remote : bool
+        Run the FMU in a ``proxyfmu`` process (Ecos's C++ host) instead of this process; needs the
+        environment of :func:`remote_env`.
     """
     ecospy = load_ecospy()
     start = {"solenoid::drive_mode": int(drive_mode),
              "solenoid::U_V" if drive_mode == 1 else "solenoid::i_A": float(u), "solenoid::x_m": float(x_m)}
     with ecospy.EcosSimulationStructure() as structure:
-        structure.add_model("solenoid", str(fmu_path))
+        structure.add_model("solenoid", f"proxyfmu://localhost?file={fmu_path}" if remote else str(fmu_path))
         structure.add_parameter_set("start", start)
         with ecospy.EcosSimulation(structure=structure, step_size=step_s) as sim:
             sim.init(parameter_set="start")

@@ -5,6 +5,9 @@ An importer that cannot be imported on this machine skips with the reason (never
 """
 
 import importlib
+import json
+import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -61,3 +64,47 @@ def test_ecos_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_pa
     except ImportError as exc:
         pytest.skip(f"ecospy (Ecos) cannot be imported: {exc}")
     _check_like_fmpy(ex_ecos.run(maps_dir, tmp_path))
+
+
+_REMOTE = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import ex_ecos
+print(json.dumps(ex_ecos.run_ecos(sys.argv[2], 1, 12.0, 1.5e-3, 0.05, remote=True)))
+"""
+
+
+def _result_line(stdout):
+    """The JSON result the _REMOTE script printed (Ecos logs on the same stream), None if absent."""
+    lines = [line for line in stdout.splitlines() if line.startswith("{")]
+    return json.loads(lines[-1]) if lines else None
+
+
+def _run_remote(cmd, env):
+    """Run the _REMOTE script; remove the socket file proxyfmu leaves in /tmp when the host aborts."""
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    for handle in re.findall(r"instantiated using handle '([^']+)'", proc.stdout + proc.stderr):
+        Path(handle).unlink(missing_ok=True)
+    return proc
+
+
+def test_ecos_runs_the_pythonfmu_fmu_in_its_cpp_host_process_with_libpython_preloaded(maps_dir, tmp_path):
+    """Ecos's proxyfmu (a C++ process) hosts the pythonfmu FMU with the README's LD_PRELOAD recipe, like fmpy."""
+    ex_ecos = _example("ex_ecos")
+    try:
+        env = ex_ecos.remote_env(tmp_path / "bin")
+    except ImportError as exc:
+        pytest.skip(f"ecospy (Ecos) cannot be imported: {exc}")
+    env["TMPDIR"] = str(tmp_path)  # Ecos unpacks the FMU there (an aborted host leaves it behind)
+    fmu = ex_ecos.build_fmu(maps_dir, tmp_path / "solenoid-python.fmu", backend="python")
+    cmd = [sys.executable, "-c", _REMOTE, str(EXAMPLES), str(fmu)]
+    proc = _run_remote(cmd, env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    got = _result_line(proc.stdout)
+    ref = _fmpy_last(fmu, 1, 12.0, 1.5e-3, 0.05)
+    for key in ("psi_Wb", "F_N"):
+        assert got[key] == pytest.approx(ref[key], rel=1e-9), key
+    # without libpython preloaded the C++ host cannot run the pythonfmu FMU (it aborts or returns no result)
+    env.pop("LD_PRELOAD")
+    proc = _run_remote(cmd, env)
+    assert proc.returncode != 0 or _result_line(proc.stdout) != got
