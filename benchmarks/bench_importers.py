@@ -16,13 +16,18 @@ linkage's relative difference to fmpy's ``doStep`` loop on the same FMU.
 - fmpy ``simulate_fmu``: the whole call (set-up, recording every step, results) divided by the steps;
 - fmpy model exchange (native FMU only): ``simulate_fmu`` with CVode, output every 1 us, whole call;
 - libcosim: ``CosimExecution.simulate_until`` with a last-value observer (reads every output each step);
-- Ecos: ``EcosSimulation.step(n)`` (the engine reads every output each step).
+- Ecos: ``EcosSimulation.step(n)`` (the engine reads every output each step);
+- Ecos proxyfmu: the same with the FMU in Ecos's ``proxyfmu`` process (a C++ host; one inter-process
+  call per FMI call), run from a child Python with ``examples/ex_ecos.py``'s ``remote_env`` (libpython
+  preloaded for the pythonfmu FMU).
 
 An importer that is not installed is reported as such and skipped.
 """
 
 from __future__ import annotations
 
+import json
+import subprocess
 import sys
 import tempfile
 import time
@@ -38,6 +43,7 @@ from solenoid_fmu.fmu import build_fmu  # noqa: E402
 H_S = 1e-6
 N_STEPS = 10_000  # 10 ms
 REPEATS = 5
+REMOTE_CHILD = "--ecos-remote-child"  # argv[1] of the child process that runs Ecos with proxyfmu
 START = {"drive_mode": 1, "U_V": 12.0, "x_m": 1.5e-3}
 
 
@@ -100,11 +106,11 @@ def _libcosim(fmu) -> tuple[float, float]:
     return wall / (N_STEPS - 1), observer.last_real_values(index, [vr["psi_Wb"]])[0]
 
 
-def _ecos(fmu) -> tuple[float, float]:
-    """(seconds per step, last psi_Wb) of Ecos's step(n) after init."""
+def _ecos(fmu, remote: bool = False) -> tuple[float, float]:
+    """(seconds per step, last psi_Wb) of Ecos's step(n) after init; ``remote``: FMU in a proxyfmu process."""
     ecospy = ex_ecos.load_ecospy()
     with ecospy.EcosSimulationStructure() as structure:
-        structure.add_model("solenoid", str(fmu))
+        structure.add_model("solenoid", f"proxyfmu://localhost?file={fmu}" if remote else str(fmu))
         structure.add_parameter_set("start", {f"solenoid::{k}": v for k, v in START.items()})
         with ecospy.EcosSimulation(structure=structure, step_size=H_S) as sim:
             sim.init(parameter_set="start")
@@ -114,6 +120,16 @@ def _ecos(fmu) -> tuple[float, float]:
             psi = sim.get_real("solenoid::psi_Wb")
             sim.terminate()
     return wall / N_STEPS, psi
+
+
+def _ecos_remote(fmu) -> tuple[float, float]:
+    """:func:`_ecos` with ``remote=True`` in a child Python started with ``ex_ecos.remote_env``."""
+    with tempfile.TemporaryDirectory(prefix="bench_importers_remote_") as tmp:
+        env = ex_ecos.remote_env(Path(tmp) / "bin")
+        env["TMPDIR"] = tmp
+        proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), REMOTE_CHILD, str(fmu)], env=env, cwd=tmp,
+                              capture_output=True, text=True, check=True)  # cwd: proxyfmu logs to logs/ there
+    return tuple(json.loads([line for line in proc.stdout.splitlines() if line.startswith("[")][-1]))
 
 
 def _available() -> dict:
@@ -131,10 +147,14 @@ def _available() -> dict:
         why["Ecos"] = None
     except ImportError as exc:
         why["Ecos"] = f"not installed ({exc})"
+    why["Ecos proxyfmu"] = why["Ecos"]
     return why
 
 
 def main(argv: list[str]) -> int:
+    if argv[1:2] == [REMOTE_CHILD]:
+        print(json.dumps(_ecos(Path(argv[2]), remote=True)))
+        return 0
     with tempfile.TemporaryDirectory(prefix="bench_importers_") as tmp:
         tmp = Path(tmp)
         if len(argv) > 1:
@@ -154,7 +174,7 @@ def main(argv: list[str]) -> int:
         why = _available()
         runs = [("fmpy doStep", "CS", _fmpy_dostep), ("fmpy simulate_fmu", "CS", _fmpy_simulate),
                 ("fmpy simulate_fmu (CVode)", "ME", lambda fmu: _fmpy_simulate(fmu, "ModelExchange")),
-                ("libcosim", "CS", _libcosim), ("Ecos", "CS", _ecos)]
+                ("libcosim", "CS", _libcosim), ("Ecos", "CS", _ecos), ("Ecos proxyfmu", "CS", _ecos_remote)]
         print(f"{'importer':<27} {'backend':<10} {'if':<3} {'us/step':>9} {'psi vs fmpy doStep':>19}")
         for backend, fmu in fmus.items():
             ref = None

@@ -80,9 +80,10 @@ def _result_line(stdout):
     return json.loads(lines[-1]) if lines else None
 
 
-def _run_remote(cmd, env):
-    """Run the _REMOTE script; remove the socket file proxyfmu leaves in /tmp when the host aborts."""
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+def _run_remote(cmd, env, cwd):
+    """Run the _REMOTE script in ``cwd`` (proxyfmu logs to logs/ there); remove the socket file
+    proxyfmu leaves in /tmp when the host aborts."""
+    proc = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True, timeout=120)
     for handle in re.findall(r"instantiated using handle '([^']+)'", proc.stdout + proc.stderr):
         Path(handle).unlink(missing_ok=True)
     return proc
@@ -98,7 +99,7 @@ def test_ecos_runs_the_pythonfmu_fmu_in_its_cpp_host_process_with_libpython_prel
     env["TMPDIR"] = str(tmp_path)  # Ecos unpacks the FMU there (an aborted host leaves it behind)
     fmu = ex_ecos.build_fmu(maps_dir, tmp_path / "solenoid-python.fmu", backend="python")
     cmd = [sys.executable, "-c", _REMOTE, str(EXAMPLES), str(fmu)]
-    proc = _run_remote(cmd, env)
+    proc = _run_remote(cmd, env, tmp_path)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     got = _result_line(proc.stdout)
     ref = _fmpy_last(fmu, 1, 12.0, 1.5e-3, 0.05)
@@ -106,5 +107,5 @@ def test_ecos_runs_the_pythonfmu_fmu_in_its_cpp_host_process_with_libpython_prel
         assert got[key] == pytest.approx(ref[key], rel=1e-9), key
     # without libpython preloaded the C++ host cannot run the pythonfmu FMU (it aborts or returns no result)
     env.pop("LD_PRELOAD")
-    proc = _run_remote(cmd, env)
+    proc = _run_remote(cmd, env, tmp_path)
     assert proc.returncode != 0 or _result_line(proc.stdout) != got
