@@ -67,8 +67,8 @@ def test_ecos_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_pa
 
 
 _REMOTE = """
-import json, sys
-sys.path.insert(0, sys.argv[1])
+import json, os, sys
+sys.path[:0] = [sys.argv[1], os.path.dirname(sys.argv[1])]  # examples/ and this checkout's solenoid_fmu
 import ex_ecos
 print(json.dumps(ex_ecos.run_ecos(sys.argv[2], 1, 12.0, 1.5e-3, 0.05, remote=True)))
 """
