@@ -7,16 +7,17 @@ Usage::
 MAPS_DIR defaults to ``maps/ps45-literature`` when it exists, else synthetic maps from
 ``tests/mapsfixture.py``. Both FMUs (``--backend c`` and ``--backend python``) are built from the
 same maps in this run. Each importer runs each FMU for 10 ms in 1 us co-simulation steps (10 000
-``doStep`` calls), voltage mode (12 V, gap 1.5 mm), in-process (the pythonfmu FMU finds libpython
-loaded). Printed per importer and FMU: wall time per step of the stepping alone (instance set up
-and initialized beforehand; minimum over :data:`REPEATS` fresh instances), and the last flux
-linkage's relative difference to fmpy's ``doStep`` loop on the same FMU.
+``doStep`` calls), voltage mode (12 V, gap 1.5 mm), in this process (the pythonfmu FMU finds
+libpython loaded) except for Ecos proxyfmu. Printed per importer and FMU: wall time per step of the
+stepping alone (instance set up and initialized beforehand; minimum over :data:`REPEATS` fresh
+instances), and the last flux linkage's relative difference to fmpy's ``doStep`` loop on the same
+FMU.
 
 - fmpy ``doStep``: a Python loop of ``FMU2Slave.doStep`` (fmpy's ctypes call, nothing else);
 - fmpy ``simulate_fmu``: the whole call (set-up, recording every step, results) divided by the steps;
 - fmpy model exchange (native FMU only): ``simulate_fmu`` with CVode, output every 1 us, whole call;
 - libcosim: ``CosimExecution.simulate_until`` with a last-value observer (reads every output each step);
-- Ecos: ``EcosSimulation.step(n)`` (the engine reads every output each step);
+- Ecos: ``EcosSimulation.step(n)``;
 - Ecos proxyfmu: the same with the FMU in Ecos's ``proxyfmu`` process (a C++ host; one inter-process
   call per FMI call), run from a child Python with ``examples/ex_ecos.py``'s ``remote_env`` (libpython
   preloaded for the pythonfmu FMU).
