@@ -18,6 +18,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from solenoid_fmu.fmu import build_fmu
+
 STEP_NS = 100_000  # 1e-4 s, libcosim counts time in nanoseconds
 
 
@@ -57,8 +59,6 @@ def run_libcosim(fmu_path, drive_mode: int, u: float, x_m: float, stop_s: float)
 
 def run(maps_dir="maps/ps45-literature", out_dir="build/ex_libcosim") -> dict:
     """Export both FMUs and run them in libcosim: {(backend, drive_mode): result of run_libcosim}."""
-    from solenoid_fmu.fmu.export import build_fmu
-
     out = Path(out_dir)
     fmus = {backend: build_fmu(maps_dir, out / f"solenoid-{backend}.fmu", backend=backend)
             for backend in ("c", "python")}

@@ -1,9 +1,13 @@
-"""The FMUs in importers we did not write (issue 14): libcosim via libcosimpy.
+"""The FMUs in importers we did not write (issue 14): libcosim via libcosimpy, Ecos via ecospy.
 
 Each importer runs the FMU with constant inputs; the result must equal fmpy's to 1e-9 relative.
 An importer that cannot be imported on this machine skips with the reason (never passes silently).
 """
 
+import importlib
+import json
+import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -28,14 +32,17 @@ def _fmpy_last(fmu, drive_mode, u, x_m, stop_s):
     return {"psi_Wb": float(res["psi_Wb"][-1]), "F_N": float(res["F_N"][-1])}
 
 
-def test_libcosim_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_path):
-    pytest.importorskip("libcosimpy", reason="libcosimpy (libcosim, OSP) is not installed")
+def _example(name):
+    """The module ``examples/<name>.py``."""
     sys.path.insert(0, str(EXAMPLES))
     try:
-        import ex_libcosim
+        return importlib.import_module(name)
     finally:
         sys.path.pop(0)
-    results = ex_libcosim.run(maps_dir, tmp_path)
+
+
+def _check_like_fmpy(results):
+    """Each importer run of an example's ``run()`` equals fmpy's; the current drive is reachable."""
     assert set(results) == {("c", 1), ("c", 2), ("python", 1)}
     for (backend, drive), got in results.items():
         ref = _fmpy_last(got["fmu"], drive, got["u"], 1.5e-3, 0.05)
@@ -44,3 +51,61 @@ def test_libcosim_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tm
     # the current-driven mode is reachable (drive_mode an Integer): its flux differs from the voltage run's
     assert abs(results[("c", 2)]["psi_Wb"] - results[("c", 1)]["psi_Wb"]) > 1e-3
 
+
+def test_libcosim_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_path):
+    pytest.importorskip("libcosimpy", reason="libcosimpy (libcosim, OSP) is not installed")
+    _check_like_fmpy(_example("ex_libcosim").run(maps_dir, tmp_path))
+
+
+def test_ecos_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_path):
+    ex_ecos = _example("ex_ecos")
+    try:
+        ex_ecos.load_ecospy()
+    except ImportError as exc:
+        pytest.skip(f"ecospy (Ecos) cannot be imported: {exc}")
+    _check_like_fmpy(ex_ecos.run(maps_dir, tmp_path))
+
+
+_REMOTE = """
+import json, os, sys
+sys.path[:0] = [sys.argv[1], os.path.dirname(sys.argv[1])]  # examples/ and this checkout's solenoid_fmu
+import ex_ecos
+print(json.dumps(ex_ecos.run_ecos(sys.argv[2], 1, 12.0, 1.5e-3, 0.05, remote=True)))
+"""
+
+
+def _result_line(stdout):
+    """The JSON result the _REMOTE script printed (Ecos logs on the same stream), None if absent."""
+    lines = [line for line in stdout.splitlines() if line.startswith("{")]
+    return json.loads(lines[-1]) if lines else None
+
+
+def _run_remote(cmd, env, cwd):
+    """Run the _REMOTE script in ``cwd`` (proxyfmu logs to logs/ there); remove the socket file
+    proxyfmu leaves in /tmp when the host aborts."""
+    proc = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True, timeout=120)
+    for handle in re.findall(r"instantiated using handle '([^']+)'", proc.stdout + proc.stderr):
+        Path(handle).unlink(missing_ok=True)
+    return proc
+
+
+def test_ecos_runs_the_pythonfmu_fmu_in_its_cpp_host_process_with_libpython_preloaded(maps_dir, tmp_path):
+    """Ecos's proxyfmu (a C++ process) hosts the pythonfmu FMU with the README's LD_PRELOAD recipe, like fmpy."""
+    ex_ecos = _example("ex_ecos")
+    try:
+        env = ex_ecos.remote_env(tmp_path / "bin")
+    except ImportError as exc:
+        pytest.skip(f"ecospy (Ecos) cannot be imported: {exc}")
+    env["TMPDIR"] = str(tmp_path)  # Ecos unpacks the FMU there (an aborted host leaves it behind)
+    fmu = ex_ecos.build_fmu(maps_dir, tmp_path / "solenoid-python.fmu", backend="python")
+    cmd = [sys.executable, "-c", _REMOTE, str(EXAMPLES), str(fmu)]
+    proc = _run_remote(cmd, env, tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    got = _result_line(proc.stdout)
+    ref = _fmpy_last(fmu, 1, 12.0, 1.5e-3, 0.05)
+    for key in ("psi_Wb", "F_N"):
+        assert got[key] == pytest.approx(ref[key], rel=1e-9), key
+    # without libpython preloaded the C++ host cannot run the pythonfmu FMU (it aborts or returns no result)
+    env.pop("LD_PRELOAD")
+    proc = _run_remote(cmd, env, tmp_path)
+    assert proc.returncode != 0 or _result_line(proc.stdout) != got
