@@ -50,7 +50,7 @@ class RigTruth:
     maps : str or None
         Directory of the true maps (relative to the truth file's directory when inside it).
     coil : dict
-        ``R20_ohm``, ``alpha_per_K``, ``max_current_A`` of the truth.
+        ``R20_ohm`` (the truth's resistance_ohm_20C), ``alpha_per_K``, ``max_current_A`` of the truth.
     recordings : list of dict
         Per file: ``file``, ``kind``, ``temperature_start_C``, ``temperature_end_C``,
         ``resistance_start_ohm``, ``psi_end_Wb``.
@@ -200,10 +200,10 @@ def run_excitations(tables: MapTables, output_dir, excitations, *, effects: Effe
         material = {"path": _rel(Path(material_path), out), "sha256": _sha256(Path(material_path))}
     derived = {"hysteresis_half_width_A": model.hysteresis_half_width_A,
                "eddy_G_low_rate_S": float(sum(effects.eddy.G_S)) if effects.eddy else None,
-               "resistance_20C_ohm": model.R20_ohm, **(derived or {})}
+               "resistance_20C_ohm": model.resistance_ohm_20C, **(derived or {})}
     truth = RigTruth(solenoid=cfg.solenoid, effects=effects, campaign=cfg, seed=seed, material=material,
                      maps=None if maps_dir is None else _rel(Path(maps_dir), out),
-                     coil={"R20_ohm": model.R20_ohm, "alpha_per_K": model.alpha_per_K,
+                     coil={"R20_ohm": model.resistance_ohm_20C, "alpha_per_K": model.alpha_per_K,
                            "max_current_A": model.max_current_A},
                      recordings=entries, derived=derived)
     (out / "truth.json").write_text(json.dumps(truth.to_dict(), indent=2) + "\n", encoding="utf-8")

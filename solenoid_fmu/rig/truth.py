@@ -51,7 +51,7 @@ class TruthModel:
         The true characteristic maps ``i_f(Psi, x)``, ``F(Psi, x)`` (FEM with the true B(H)).
     effects : Effects
         Effects switched on.
-    R20_ohm : float, optional
+    resistance_ohm_20C : float, optional
         Coil resistance at 20 degC [ohm]; default from the maps (coil.resistance_ohm_20C).
     alpha_per_K : float, optional
         Temperature coefficient of the resistance [1/K]; default from the maps, else copper.
@@ -61,16 +61,16 @@ class TruthModel:
         Largest integration sub-step [s].
     """
 
-    def __init__(self, tables: MapTables, effects: Effects | None = None, R20_ohm: float | None = None,
+    def __init__(self, tables: MapTables, effects: Effects | None = None, resistance_ohm_20C: float | None = None,
                  alpha_per_K: float | None = None, max_current_A: float | None = None,
                  h_sub_max_s: float = 5e-4):
         self.tables = tables
         self.effects = effects or Effects()
         coil = tables.meta.get("coil") or {}
-        R20 = R20_ohm if R20_ohm is not None else coil.get("resistance_ohm_20C")
+        R20 = resistance_ohm_20C if resistance_ohm_20C is not None else coil.get("resistance_ohm_20C")
         if R20 is None:
-            raise RigError("no coil resistance: give R20_ohm or maps with coil.resistance_ohm_20C")
-        self.R20_ohm = positive("R20_ohm", R20)
+            raise RigError("no coil resistance: give resistance_ohm_20C or maps with coil.resistance_ohm_20C")
+        self.resistance_ohm_20C = positive("resistance_ohm_20C", R20)
         if alpha_per_K is None:
             alpha_per_K = coil.get("temperature_coefficient_per_K", COPPER_ALPHA_PER_K)
         alpha = alpha_per_K
@@ -102,7 +102,7 @@ class TruthModel:
 
     def resistance_ohm(self, T_C: float) -> float:
         """Coil resistance [ohm] at ``T_C`` [degC]: ``R20 (1 + alpha (T - 20))``."""
-        return self.R20_ohm * (1.0 + self.alpha_per_K * (T_C - 20.0))
+        return self.resistance_ohm_20C * (1.0 + self.alpha_per_K * (T_C - 20.0))
 
     def cool(self, T_C: float, pause_s: float, ambient_C: float) -> float:
         """Coil temperature [degC] after ``pause_s`` [s] without current (exponential cooling)."""
