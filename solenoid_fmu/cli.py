@@ -24,9 +24,7 @@ COMMAND_MODULES = (
     "identification.identify",
     "maps.eddy",
     "fmu.export",
-    "loop.validate",
-    "loop.diagnose",
-    "loop.improvement",
+    "loop.cli",
     "pipeline",
 )
 
