@@ -27,8 +27,9 @@ part of a residual. (A current-sensor gain error is, like a uniformly scaled B(H
 function of Psi: it is reported as ``material``; a sensor offset is not.)
 
 Evidence that cannot be gamed by adding parameters: the features are fitted on one half of the
-data and scored on the other half (two-fold cross-validation over recordings, or over 20
-alternating blocks in time when there is only one recording). The score of an effect is the share of the
+data and scored on the other half (two-fold cross-validation over recordings, dealt out by the
+size of their excitations, or over 20 alternating blocks in time when there is only one
+recording: :func:`solenoid_fmu.loop.split.cv_folds`). The score of an effect is the share of the
 held-out residual variance its fit explains, pooled over all residual signals (each signal
 normalized by its measured range). The verdict is the best effect if its score clears
 ``threshold`` (default 0.25), else ``"unexplained"``: noise cannot be predicted on held-out

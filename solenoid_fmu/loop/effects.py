@@ -53,14 +53,14 @@ def _i_f(tables: MapTables, psi: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.array([tables.i_f_A(float(p), float(xx)) for p, xx in zip(psi, x, strict=True)])
 
 
-def flux_data(rec, tables: MapTables):
+def flux_data(rec, tables: MapTables, flux_of=flux_linkage):
     """(t, Psi, dPsi/dt, i, x) of a recording from paper eq. 4, or None if its flux is not absolute.
 
     A recording that starts energized has Psi anchored to the maps' flux at the first sample's
     current and position (the integration constant eq. 4 cannot give); one without any
     zero-current rest (no measured voltage offset) is left out (None).
     """
-    fr = flux_linkage(rec)
+    fr = flux_of(rec)
     if not fr.offset_measured:
         return None
     t = np.asarray(rec.time_s, dtype=float)
@@ -92,7 +92,7 @@ def _hyst_current(effects, psi) -> np.ndarray:
 
 
 # -- fits ----------------------------------------------------------------------------------------
-def fit_hysteresis(tables, effects, recordings) -> tuple[dict, dict]:
+def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[dict, dict]:
     """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note)."""
     recs = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
     if not recs:
@@ -101,7 +101,7 @@ def fit_hysteresis(tables, effects, recordings) -> tuple[dict, dict]:
         raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
     bs, hs, used = [], [], []
     for rec in recs:
-        data = flux_data(rec, tables)
+        data = flux_data(rec, tables, flux_of)
         if data is None:
             continue
         t, psi, e, i, x = data
@@ -122,7 +122,7 @@ def fit_hysteresis(tables, effects, recordings) -> tuple[dict, dict]:
     return section, {"fitted_on": [recording_name(r) for r in used], "rms_A": fit.rms}
 
 
-def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
+def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[dict, dict]:
     """Eddy-current ladder by NNLS over fixed time constants; (section, note).
 
     The note's ``G_eddy_S`` is ``{"maps": the maps' G_eddy [S] or None, "refit": G [S], "kept":
@@ -134,7 +134,7 @@ def fit_eddy_ladder(tables, effects, recordings) -> tuple[dict, dict]:
         raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
     rows, ys, used = [], [], []
     for rec in recs:
-        data = flux_data(rec, tables)
+        data = flux_data(rec, tables, flux_of)
         if data is None:
             continue
         t, psi, e, i, x = data

@@ -28,7 +28,7 @@ def _reverses(rec) -> bool:
     return float(np.max(np.abs(x[k:] - x[k]))) > 0.05 * span
 
 
-def not_identifiable(recordings) -> dict:
+def not_identifiable(recordings, flux_of=flux_linkage) -> dict:
     """Addable effects the campaign cannot identify, each with what to add (see README).
 
     ``hysteresis``: a current-driven ``flux`` (or ``ramp`` / ``eddy``) recording with voltage that
@@ -40,7 +40,7 @@ def not_identifiable(recordings) -> dict:
     def absolute(rec):
         if rec.voltage_V is None:
             return False
-        fr = flux_linkage(rec)
+        fr = flux_of(rec)
         return fr.starts_at_rest and fr.offset_measured
 
     volt = [r for r in recordings if r.voltage_V is not None and r.kind != "voltage_step"]

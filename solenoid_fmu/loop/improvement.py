@@ -9,8 +9,9 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
    gate of step 3 decides), while the residual is significant (``hysteresis``,
    ``eddy`` as an eddy-current ladder, ``heating``, ``friction``; ``material`` and ``sensor`` are
    not model effects: a wrong B(H) is fixed by ``identify``, a sensor by calibration);
-3. fit its parameters on the *fit* part of the recordings (:func:`solenoid_fmu.loop.split.split_recordings`) by the
-   effect's own regression (below), simulate all recordings with it and keep it only if the
+3. fit its parameters on the *fit* part of the recordings
+   (:func:`solenoid_fmu.loop.split.split_recordings`) by the effect's own regression
+   (:mod:`solenoid_fmu.loop.effects`), simulate all recordings with it and keep it only if the
    error on the *validation* part falls by at least ``min_gain`` (default 10 %). A one- or
    two-parameter effect (heating, friction) whose evidence sits in a few recordings, all of them
    in the fit part, cannot pass that; it is fitted on all recordings and kept if it cuts the error
@@ -22,14 +23,16 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
    residual spoils the heating fit until the ladder is in the model).
 
 Campaigns from any rig: the fit/validation split and the diagnosis's cross-validation folds go
-by the size of the excitations, not by file names; the flux of a recording that starts energized
-is compared as a change from the model's flux at its first sample; the gate's error is the
-full-scale NRMSE per kind (:func:`_error`), so that no single recording can swing it.
+by the size of the excitations, not by file names (one ordering, :mod:`solenoid_fmu.loop.split`);
+the flux of a recording that starts energized is compared as a change from the model's flux at
+its first sample; the gate's error is the full-scale NRMSE per kind (:func:`_error`), so that no
+single recording can swing it.
 
-The effects' fits are :mod:`solenoid_fmu.loop.effects`'s; the split and the folds
-:mod:`solenoid_fmu.loop.split`'s; the maps with effects :mod:`solenoid_fmu.loop.tables`'. A kept eddy
-ladder brings its own refit of the maps' single eddy conductance, which replaces the maps' value
-(the step's note and the improved maps' ``eddy.source`` say so; see :mod:`solenoid_fmu.loop.effects`).
+The maps with effects are read and written by :mod:`solenoid_fmu.loop.tables`. A kept eddy ladder
+brings its own refit of the maps' single eddy conductance, which replaces the maps' value: the
+step's note (``G_eddy_S``: the maps' value and the refit) and the improved maps' ``eddy.source``
+say so (see :mod:`solenoid_fmu.loop.effects`). Each recording's eq.-4 flux is computed once per
+run (:class:`solenoid_fmu.loop.residuals.FluxCache`).
 
 The reported before/after errors come from the FMUs themselves (fmpy), per recording and signal.
 """
@@ -46,13 +49,13 @@ import numpy as np
 
 from ..fileio import atomic_write_text, jsonable
 from ..fmu import build_fmu, simulate_model
-from ..measure import Recording, read_recording
+from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_MIN_NRMS, DEFAULT_THRESHOLD, diagnose
 from .effects import fit_eddy_ladder, fit_friction, fit_heating, fit_hysteresis, g_eddy_source
 from .identifiability import not_identifiable
 from .metrics import full_scales, nrmse_fs
-from .residuals import cases_from_recordings, recording_name
+from .residuals import FluxCache, cases_from_recordings, recording_name
 from .split import split_recordings
 from .tables import ADDABLE, ImproveError, tables_from_fmu, with_effects, write_maps_dir
 from .validation import validate
@@ -98,9 +101,9 @@ class Improvement(NamedTuple):
 
 
 # -- the loop ------------------------------------------------------------------------------------
-def _cases(tables, recordings, progress=None):
+def _cases(tables, recordings, progress=None, flux_of=flux_linkage):
     return cases_from_recordings(None, recordings, progress=progress and (lambda n: progress(f"simulating {n}")),
-                                 simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
+                                 simulate=lambda r, R: simulate_model(tables, r, R_ohm=R), flux_of=flux_of)
 
 
 def _error(cases, names) -> float:
@@ -123,15 +126,15 @@ def _error(cases, names) -> float:
     return float(np.mean(vals)) if vals else 0.0
 
 
-def _fit_effect(pick: str, tables, effects: dict, recs: list, cases: list) -> tuple[dict, dict, dict]:
+def _fit_effect(pick: str, tables, effects: dict, recs: list, cases: list, flux_of) -> tuple[dict, dict, dict]:
     """Fit ``pick`` on ``recs`` (their residual ``cases``): (section, note, replaced), ``replaced``
     the keywords of :func:`with_effects` for the maps' values the effect replaces (the eddy
     ladder's refit of G_eddy with its source; ``{}`` for the others)."""
     if pick == "hysteresis":
-        section, note = fit_hysteresis(tables, effects, recs)
+        section, note = fit_hysteresis(tables, effects, recs, flux_of)
         return section, note, {}
     if pick == "eddy":
-        section, note = fit_eddy_ladder(tables, effects, recs)
+        section, note = fit_eddy_ladder(tables, effects, recs, flux_of)
         return section, note, {"G_eddy_S": note["G_eddy_S"]["refit"], "G_eddy_source": g_eddy_source(tables, note)}
     if pick == "heating":
         section, note = fit_heating(tables, effects, cases)
@@ -141,7 +144,7 @@ def _fit_effect(pick: str, tables, effects: dict, recs: list, cases: list) -> tu
 
 
 def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS, min_gain: float = DEFAULT_MIN_GAIN,
-                   threshold: float | None = None, progress=None) -> Improvement:
+                   threshold: float | None = None, progress=None, flux_of=None) -> Improvement:
     """Run the loop on in-process simulations (see the module docstring).
 
     Parameters
@@ -155,6 +158,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         Relative fall of the validation error an effect must bring to be kept.
     threshold : float, optional
         Diagnosis threshold (default :data:`solenoid_fmu.loop.diagnosis.DEFAULT_THRESHOLD`).
+    flux_of : FluxCache, optional
+        The eq.-4 flux of the recordings (default: a new :class:`~solenoid_fmu.loop.residuals.FluxCache`,
+        so that each recording's flux is computed once in the run).
     """
     if not recordings:
         raise ImproveError("improve needs at least one recording")
@@ -168,10 +174,11 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     steps: list[Step] = []
     diagnoses = []
     tried: set = set()
-    missing = not_identifiable(recordings)
+    flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
+    missing = not_identifiable(recordings, flux_of)
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
-    cases = cases0 = _cases(tables, recordings, say)
+    cases = cases0 = _cases(tables, recordings, say, flux_of)
     while sum(s.accepted for s in steps) < max_effects:
         d = diagnose(cases, threshold=threshold)
         diagnoses.append(d.as_dict())
@@ -194,14 +201,14 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         say(f"adding {pick} (diagnosis score {next(c.score for c in d.ranking if c.effect == pick):.3f})")
         try:
             section, note, replaced = _fit_effect(pick, tables, effects, fit_recs,
-                                                  [c for c in cases if c.name in fit_names])
+                                                  [c for c in cases if c.name in fit_names], flux_of)
         except ImproveError as exc:
             steps.append(Step(pick, False, note=str(exc)))
             say(f"  not added: {exc}")
             continue
         trial_fx = dict(effects, **{ADDABLE[pick]: section})
         trial = with_effects(tables, trial_fx, **replaced)
-        trial_cases = _cases(trial, recordings, say)
+        trial_cases = _cases(trial, recordings, say, flux_of)
         before, after = _error(cases, val_names), _error(trial_cases, val_names)
         ok = after < (1.0 - min_gain) * before
         if not ok and pick in FEW_PARAMETERS:
@@ -209,14 +216,14 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
             # too weak to estimate it. Fitted on all recordings, it must cut the error over all of them
             # by min_gain, and the fit-part estimate must not make the validation recordings worse.
             try:
-                section_all, note_all, replaced_all = _fit_effect(pick, tables, effects, recordings, cases)
+                section_all, note_all, replaced_all = _fit_effect(pick, tables, effects, recordings, cases, flux_of)
             except ImproveError:
                 section_all = None
             if section_all is not None:
                 all_names = val_names | fit_names
                 trial_all_fx = dict(effects, **{ADDABLE[pick]: section_all})
                 trial_all = with_effects(tables, trial_all_fx, **replaced_all)
-                cases_all = _cases(trial_all, recordings, say)
+                cases_all = _cases(trial_all, recordings, say, flux_of)
                 b_all, a_all = _error(cases, all_names), _error(cases_all, all_names)
                 val_ok = after <= (1.0 + 0.1 * min_gain) * before  # not worse beyond a tenth of the gain asked for
                 if a_all < (1.0 - min_gain) * b_all and val_ok:
@@ -266,15 +273,16 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
     if not recs:
         raise ImproveError("improve needs at least one recording")
     tables, _ = tables_from_fmu(fmu_path)
+    flux_of = FluxCache()
     improved, steps, diagnoses, _, _, missing = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
-                                                      threshold=threshold, progress=say)
+                                                               threshold=threshold, progress=say, flux_of=flux_of)
     out_fmu = Path(out_fmu)
     maps_dir = write_maps_dir(improved, fmu_path, out_fmu.with_suffix(".maps"))
     say(f"building {out_fmu}")
     build_fmu(maps_dir, out_fmu)
     say("validating the FMU before and after")
-    before = validate(fmu_path, recs, report_dir=before_report_dir)
-    after = validate(out_fmu, recs, report_dir=report_dir)
+    before = validate(fmu_path, recs, report_dir=before_report_dir, flux_of=flux_of)
+    after = validate(out_fmu, recs, report_dir=report_dir, flux_of=flux_of)
     fit_recs, _ = split_recordings(recs)
     fit_names = {recording_name(r) for r in fit_recs}
     rows = []

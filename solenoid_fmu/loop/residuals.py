@@ -69,12 +69,31 @@ class ResidualCase:
     detrended: tuple = ()
 
 
+class FluxCache:
+    """The eq.-4 flux (:func:`solenoid_fmu.measure.flux_linkage`) of each recording, computed once.
+
+    Call it like ``flux_linkage(rec)``; results are kept per recording object while the cache
+    lives (``improve`` keeps one per run: the flux of a recording does not change between its
+    simulations, the identifiability check and the fits).
+    """
+
+    def __init__(self):
+        self._by_id: dict = {}
+
+    def __call__(self, rec):
+        hit = self._by_id.get(id(rec))
+        if hit is None or hit[0] is not rec:
+            hit = self._by_id[id(rec)] = (rec, flux_linkage(rec))
+        return hit[1]
+
+
 def recording_name(rec) -> str:
     """How reports name a recording: its file name, or its kind when it has no file."""
     return rec.path.name if rec.path is not None else rec.kind
 
 
-def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) -> list[ResidualCase]:
+def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
+                          flux_of=flux_linkage) -> list[ResidualCase]:
     """Run the FMU on each recording's measured inputs and collect the residuals.
 
     Current-driven runs (flux, force_stroke, ramp, eddy) give the flux residual where the
@@ -91,6 +110,9 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) ->
     simulate : callable, optional
         ``simulate(recording, R_ohm) -> SimulationResult`` instead of the FMU (e.g.
         :func:`solenoid_fmu.fmu.simulate_model` in process).
+    flux_of : callable, optional
+        ``flux_of(recording) -> FluxResult``, the eq.-4 flux of a recording as read (default
+        :func:`solenoid_fmu.measure.flux_linkage`; a :class:`FluxCache` computes it once).
     """
     if simulate is None:
         def simulate(rec, R_ohm):
@@ -101,15 +123,17 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) ->
         rec = item if isinstance(item, Recording) else read_recording(item)
         if progress:
             progress(recording_name(rec))
+        read = rec
         if rec.position_m is not None:  # drive the model with the position less its encoder jitter
             rec = dataclasses.replace(rec, position_m=conditioned_position(rec.position_m))
-        case = residual_case(rec, simulate)
+        # the flux does not depend on the position: that of the recording as read
+        case = residual_case(rec, simulate, flux_of=lambda _rec, read=read: flux_of(read))
         if case is not None:
             cases.append(case)
     return cases
 
 
-def residual_case(rec, simulate) -> ResidualCase | None:
+def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
     """Residuals of one recording against a simulator (None if it has no signal to compare).
 
     The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
@@ -125,13 +149,14 @@ def residual_case(rec, simulate) -> ResidualCase | None:
     recording from rest and the honest comparison for one that starts energized (the report's
     flux plots say "anchored to the model at t = 0"). A recording without any zero-current rest
     has no measured voltage offset either: its flux residual is known up to ``a + b t`` and is
-    projected orthogonal to that trend (``ResidualCase.detrended``).
+    projected orthogonal to that trend (``ResidualCase.detrended``). ``flux_of`` computes the
+    eq.-4 flux (default :func:`solenoid_fmu.measure.flux_linkage`).
     """
     residuals, measured = {}, {}
     fr = None
     R = rec.coil_resistance_ohm
     if rec.voltage_V is not None and rec.kind != "voltage_step":
-        fr = flux_linkage(rec)
+        fr = flux_of(rec)
         R = fr.resistance_ohm
     sim = simulate(rec, R)
     s = sim.recording
@@ -143,7 +168,7 @@ def residual_case(rec, simulate) -> ResidualCase | None:
     if sim.drive_mode == "current":
         if rec.voltage_V is not None:
             if fr is None:
-                fr = flux_linkage(rec)
+                fr = flux_of(rec)
                 R = fr.resistance_ohm
             t = np.asarray(rec.time_s, dtype=float)
             i = np.asarray(rec.current_A, dtype=float)

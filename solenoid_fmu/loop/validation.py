@@ -36,7 +36,7 @@ from pathlib import Path
 
 from ..errors import FmuInputError, RecordingError
 from ..fileio import atomic_write_text
-from ..measure import Recording, read_recording
+from ..measure import Recording, flux_linkage, read_recording
 from .metrics import ValidationError, summarize, validate_cases
 from .plots import plot_overlay, plot_residual
 from .residuals import cases_from_recordings
@@ -70,20 +70,23 @@ def _read_all(recordings) -> list:
     return recs
 
 
-def validate(fmu_path, recordings, *, report_dir=None, progress=None) -> dict:
+def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=flux_linkage) -> dict:
     """Run the FMU on each recording's measured inputs and compare every output it has.
 
     Parameters
     ----------
     fmu_path : path-like
         A solenoid-fmu FMU (``solenoid-fmu export``).
-    recordings : list of path-like or solenoid_fmu.recordings.Recording
+    recordings : list of path-like or solenoid_fmu.measure.Recording
         Recordings (format v1). All are read before the first simulation.
     report_dir : path-like, optional
         When given: ``<stem>_overlay.png`` and ``<stem>_residual.png`` per recording and
         ``validation.json`` (the returned dict) are written there (atomically).
     progress : callable, optional
         Called with each file name before it is simulated.
+    flux_of : callable, optional
+        ``flux_of(recording) -> FluxResult`` (default :func:`solenoid_fmu.measure.flux_linkage`; a
+        :class:`~solenoid_fmu.loop.residuals.FluxCache` shared with other steps computes it once).
 
     Returns
     -------
@@ -115,7 +118,7 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None) -> dict:
     out_dir = None if report_dir is None else Path(report_dir)
     entries, figures = [], []
     for rec, name, stem in zip(recs, names, stems, strict=True):
-        found = cases_from_recordings(fmu_path, [rec], progress=progress)
+        found = cases_from_recordings(fmu_path, [rec], progress=progress, flux_of=flux_of)
         if not found:
             entry = {"file": name, "kind": rec.kind, "drive": "", "signals": {},
                      "note": "nothing to compare (no force; no voltage in a current-driven run)"}

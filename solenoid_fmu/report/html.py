@@ -13,7 +13,7 @@ A section is a dict::
      "figures": ["a.png", matplotlib_figure, ("b.png", "caption"), ...],
      "html": "<p>raw html, inserted as it is</p>"}
 
-:func:`errors_table` turns two validation results (:func:`solenoid_fmu.validate.validate`) into a
+:func:`errors_table` turns two validation results (:func:`solenoid_fmu.loop.validate`) into a
 before/after table; :func:`validation_section` turns one into a section.
 """
 
@@ -243,7 +243,7 @@ def errors_table(before: dict, after: dict | None = None) -> dict:
     Parameters
     ----------
     before : dict
-        A validation result (:func:`solenoid_fmu.validate.validate` or ``validate_cases``).
+        A validation result (:func:`solenoid_fmu.loop.validate` or ``validate_cases``).
     after : dict, optional
         A second validation result of the same recordings (e.g. after ``improve``).
 
@@ -255,7 +255,7 @@ def errors_table(before: dict, after: dict | None = None) -> dict:
         signal found in either result (matched by ``file``, in the order of ``before`` then new
         ones of ``after``); a value missing on one side is ``None``, as is the ratio then or
         when the rms before is zero. Without ``after``: columns ``file, signal, rms, max, nrmse,
-        nrmse_fs`` (range-normalized and full-scale-per-kind NRMSE, see :mod:`solenoid_fmu.validate`).
+        nrmse_fs`` (range-normalized and full-scale-per-kind NRMSE, see :mod:`solenoid_fmu.loop.metrics`).
         rms and max are in the signal's SI unit (see the signal name).
     """
     b = _rows_by_file(before)
@@ -282,7 +282,7 @@ def validation_section(result: dict, heading: str = "Validation", text: str = ""
     Parameters
     ----------
     result : dict
-        From :func:`solenoid_fmu.validate.validate`.
+        From :func:`solenoid_fmu.loop.validate`.
     heading, text : str
         Section heading and plain-text introduction.
     figures : bool
