@@ -35,7 +35,6 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import nnls
 
 from ..measure import flux_linkage
 from ..realtime import COPPER_ALPHA_PER_K, HysteresisError, MapTables, PlayHysteresis, fit_play_to_series
@@ -129,6 +128,9 @@ def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[
     ...}``: the ladder's direct term, which replaces the maps' value with the ladder (module
     docstring).
     """
+    # lazy: scipy.optimize takes ~0.15 s to import and only this fit needs it (command-line start-up)
+    from scipy.optimize import nnls
+
     recs = [r for r in recordings if r.kind == "eddy" and r.voltage_V is not None]
     if not recs:
         raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
