@@ -35,7 +35,7 @@ MODEL_NAME = {"hysteresis": "hysteresis", "eddy-ladder": "eddy", "heating": "hea
 
 
 def _loop(tables, folder) -> tuple[list, float]:
-    from solenoid_fmu.loop.improvement import improve_tables
+    from solenoid_fmu.loop import improve_tables
     from solenoid_fmu.measure import read_recording
 
     recs = [read_recording(p) for p in sorted((folder / "recordings").glob("*.csv"))]

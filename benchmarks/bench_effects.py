@@ -41,7 +41,7 @@ def _time(tab, n=20000, blocks=5) -> float:
 
 
 def main() -> None:
-    from solenoid_fmu.loop.improvement import with_effects
+    from solenoid_fmu.loop import with_effects
     from solenoid_fmu.realtime.model import load_tables
 
     base = load_tables(ROOT / "maps" / "ps45-literature")

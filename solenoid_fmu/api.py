@@ -35,10 +35,8 @@ from pathlib import Path
 from .field import BHCurve, Geometry, Solution, load_geometry, load_material, solve_point
 from .fmu import build_fmu, simulate_recording
 from .identification import identify_from_recordings
-from .loop.diagnose import Diagnosis, cases_from_recordings  # TEMP until loop merge
-from .loop.diagnose import diagnose as _diagnose_cases  # TEMP
-from .loop.improvement import improve  # TEMP
-from .loop.validate import validate  # TEMP
+from .loop import Diagnosis, cases_from_recordings, improve, validate
+from .loop import diagnose as _diagnose_cases
 from .maps import build_maps, force_at, force_psi_at, i_f_at, load_maps, psi_at, save_maps
 from .measure import flux_linkage, make_recording, read_recording, write_recording
 from .pipeline import run_pipeline

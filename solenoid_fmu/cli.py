@@ -23,9 +23,7 @@ COMMAND_MODULES = (
     "rig.cli",
     "identification.cli",
     "fmu.cli",
-    "loop.validate",
-    "loop.diagnose",
-    "loop.improvement",
+    "loop.cli",
     "pipeline",
 )
 

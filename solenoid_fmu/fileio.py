@@ -1,5 +1,8 @@
 """Atomic file output: a result file is either complete or not there, never half-written.
 
+Also the checks every writer runs before any work (an output must not overwrite its inputs) and
+:func:`jsonable`, which makes results JSON can hold (``null`` for non-finite numbers).
+
 Every writer of the package (maps, recordings, materials, FMUs) writes to a temporary file in the
 destination's directory and renames it over the destination. The temporary file gets the mode a
 plain ``open()`` would give (0666 less the umask), not ``mkstemp``'s private 0600.
@@ -7,11 +10,14 @@ plain ``open()`` would give (0666 less the umask), not ``mkstemp``'s private 060
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 from .errors import SolenoidError
 
@@ -93,3 +99,17 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write UTF-8 ``text`` with ``\\n`` line ends to ``path`` atomically."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def jsonable(obj):
+    """``obj`` with what JSON cannot hold made writable: tuples as lists, numpy scalars as Python
+    numbers, non-finite floats (nan, inf) as None (JSON ``null``); dicts and lists recursively."""
+    if isinstance(obj, dict):
+        return {k: jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.generic):
+        return jsonable(obj.item())
+    return obj

@@ -14,14 +14,14 @@
 4. **eddy**: the single eddy conductance from the ``eddy`` recordings, stored in ``maps/maps.json``;
 5. **export**: ``NAME.fmu`` (pythonfmu) and, when a C compiler is there, ``NAME-native.fmu``;
 6. **validate** and **diagnose** the FMU on every recording;
-7. **improve**: add the diagnosed effects -> ``NAME-improved.fmu`` (:mod:`solenoid_fmu.improve`) and
+7. **improve**: add the diagnosed effects -> ``NAME-improved.fmu`` (:mod:`solenoid_fmu.loop.improvement`) and
    its native twin ``NAME-improved-native.fmu``;
 8. **report**: ``report.html`` (self-contained) and ``summary.json``.
 
 When ``improve`` adds coil heating, the flux recordings the identification used carried the heating's
 eq.-4 drift (a B(H) error the diagnosis cannot always separate from the effects left, e.g. hysteresis
 explains part of a force residual a wrong B(H) leaves): steps 2-7 run once more on recordings whose
-voltage is corrected with the fitted heating model (:func:`solenoid_fmu.improve.heating_corrected`,
+voltage is corrected with the fitted heating model (:func:`solenoid_fmu.loop.heating_corrected`,
 written to ``heating-corrected/``); ``summary.json["first_round"]`` keeps what the first round found.
 
 ``summary.json`` holds ``material``, ``fmu``, ``improved_fmu`` (paths), ``effects_added`` (the
@@ -35,6 +35,7 @@ error and leaves the results of the steps before it in place.
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import json
 import math
 import sys
@@ -44,6 +45,25 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SolenoidError
+from .field import load_geometry
+from .fileio import atomic_write_text, jsonable, refuse_overwriting_inputs, require_directory
+from .fmu import build_fmu
+from .identification import identify_from_recordings
+from .loop import heating_corrected, improve, tables_from_fmu
+from .maps import (
+    DEFAULT_CURRENT_FACTOR,
+    DEFAULT_NI,
+    InlineExecutor,
+    build_maps,
+    default_currents,
+    default_positions,
+    fit_eddy,
+    load_maps,
+    name_problem,
+    save_maps,
+)
+from .measure import read_recording, write_recording
+from .report import write_campaign_report
 
 #: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests).
 PRESETS = {
@@ -100,8 +120,6 @@ def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None
     n_i : int, optional
         Number of currents up to the rated top (default ``maps.DEFAULT_NI``).
     """
-    from .maps import DEFAULT_CURRENT_FACTOR, DEFAULT_NI, default_currents
-
     n_i = DEFAULT_NI if n_i is None else int(n_i)
     rated_top = DEFAULT_CURRENT_FACTOR * rated_current_A
     peaks = [float(np.max(np.abs(c[np.isfinite(c)]), initial=0.0))
@@ -114,8 +132,6 @@ def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None
 
 def _maps_grid(preset: dict, geometry, recordings=()):
     """Positions [m] and currents [A] of the maps sweep for a preset and campaign (None: the maps' defaults)."""
-    from .maps import default_positions
-
     x = None
     if preset["n_x"] is not None:
         x = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, preset["n_x"])
@@ -126,9 +142,6 @@ def _output_dir(folder, out_dir) -> Path:
     """``out_dir`` checked before any work: not under a file, neither inside the campaign folder
     (its recordings would be read back as campaign recordings) nor holding it, and the campaign's
     name (the maps name) one line without control characters."""
-    from .fileio import refuse_overwriting_inputs, require_directory
-    from .maps import name_problem
-
     out = refuse_overwriting_inputs(require_directory(out_dir, "-o"), [folder])
     if (problem := name_problem(Path(folder).resolve().name)) is not None:
         raise PipelineError(f"{folder}: the campaign folder's name names the maps: {problem}")
@@ -138,15 +151,6 @@ def _output_dir(folder, out_dir) -> Path:
 def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
                  progress=_progress) -> dict:
     """Run the main job (module docstring) and return the summary dict (also in ``summary.json``)."""
-    import concurrent.futures as cf
-
-    from .field import load_geometry
-    from .fileio import atomic_write_text
-    from .fmu import build_fmu
-    from .identification import identify_from_recordings
-    from .loop import improve
-    from .maps import InlineExecutor, build_maps, fit_eddy, load_maps, save_maps
-    from .measure import read_recording
 
     if preset not in PRESETS:
         raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
@@ -245,9 +249,6 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         # Correct them with the fitted heating model and identify again.
         say("== coil heating was " + ("added" if heat else "fitted, B(H) error left") +
             ": identify B(H) again from heating-corrected flux")
-        from .loop import heating_corrected, tables_from_fmu
-        from .measure import write_recording
-
         heating = tables_from_fmu(res["improved_fmu"])[0].meta["effects"]["heating"] if heat else tried_heat
         corr_dir = out / "heating-corrected"
         corr_dir.mkdir(parents=True, exist_ok=True)
@@ -278,72 +279,12 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         "skipped_files": [str(p) for p in skipped], "preset": preset, "times_s": times,
         "first_round": first_round,
     }
-    html_path = _write_report(out / "report.html", name, summary, ident, res, res["before"])
+    html_path = write_campaign_report(out / "report.html", name, summary, ident, res, res["before"])
     summary["report"] = str(html_path)
     times["report"] = time.perf_counter() - t0
     times["total"] = time.perf_counter() - t_all
-    from .loop import jsonable
-
     atomic_write_text(out / "summary.json", json.dumps(jsonable(summary), indent=1) + "\n")
     return summary
-
-
-def _write_report(path, name, summary, ident, res, before) -> Path:
-    from .report import errors_table, write_html_report
-
-    ident_dir = Path(summary["material"]).parent.parent / "identify"
-    ident_figs = sorted(ident_dir.glob("*.png"))
-    s = summary["identification"]
-    sections = [
-        {"heading": "Summary",
-         "text": (f"Campaign {summary['campaign']}: {len(summary['recordings'])} recordings. "
-                  f"Effects added to the real-time model: {', '.join(summary['effects_added']) or 'none'}.\n\n"
-                  + "".join(f"{k}: not identifiable from these recordings: {v}\n"
-                            for k, v in summary["not_identifiable"].items())
-                  + f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
-                  f"Identified material: {summary['material']}"),
-         "table": _summary_table(summary)},
-        {"heading": "B(H) identification",
-         "text": (f"Method {s.get('method')}, {s.get('status')}; flux error (RMS of peak) "
-                  f"{ident.rms_before * 100:.3g} % with the start curve, {ident.rms_after * 100:.3g} % after; "
-                  f"identified H range {s['identified_H_range_A_per_m'][0]:.3g} .. "
-                  f"{s['identified_H_range_A_per_m'][1]:.3g} A/m; {s.get('fem_solves')} FEM solves, "
-                  f"{s.get('wall_time_s', 0):.0f} s."),
-         "figures": ident_figs},
-        {"heading": "Eddy currents",
-         "text": "No eddy recording." if summary["eddy"] is None else
-         f"G_eddy = {summary['eddy']['G_model_S'] * 1e3:.4g} mS. {summary['eddy'].get('message', '')}"},
-        {"heading": "Diagnosis of the FMU's residual",
-         "text": f"Verdict: {summary['diagnosis']['verdict'] if summary['diagnosis'] else 'n/a'}.",
-         "table": {"columns": ["effect", "score", "explained"],
-                   "rows": [[c["effect"], c["score"], c["explained"]]
-                            for c in (summary["diagnosis"] or {}).get("ranking", [])]}},
-        {"heading": "Improvement steps",
-         "text": "Each effect is fitted on the 'fit' recordings and kept only if the error on the 'validate' "
-                 "recordings falls by at least 10 % (mean squared NRMSE by the full scale per kind, each capped at 1).",
-         "table": {"columns": ["effect", "kept", "validation error before", "after", "note"],
-                   "rows": [[st["effect"], "yes" if st["accepted"] else "no", st["heldout_error_before"],
-                             st["heldout_error_after"], st["note"][:120]] for st in summary["improve_steps"]]}},
-        {"heading": "Errors before and after improvement (RMS, SI units)",
-         "table": errors_table(res["before"], res["after"])},
-        {"heading": "Validation of the improved FMU", "figures": res["after"].get("figures", [])},
-        {"heading": "Validation of the FMU before improvement", "figures": before.get("figures", [])},
-    ]
-    return write_html_report(path, f"solenoid-fmu pipeline: {name}", sections)
-
-
-def _summary_table(summary) -> dict:
-    by_signal: dict = {}
-    for e in summary["errors"]:
-        if e["before_nrmse_fs"] is None or e["after_nrmse_fs"] is None:
-            continue
-        by_signal.setdefault(e["signal"], []).append((e["before_nrmse_fs"], e["after_nrmse_fs"]))
-    rows = []
-    for sig, vals in by_signal.items():
-        b = sum(v[0] for v in vals) / len(vals)
-        a = sum(v[1] for v in vals) / len(vals)
-        rows.append([sig, len(vals), b, a, a / b if b else None])
-    return {"columns": ["signal", "recordings", "mean NRMSE (full scale) before", "after", "ratio"], "rows": rows}
 
 
 def add_cli(sub) -> None:
@@ -362,8 +303,6 @@ def add_cli(sub) -> None:
 def _cli(args) -> int:
     s = run_pipeline(args.campaign, args.output, geometry=args.geometry, preset=args.preset, workers=args.workers)
     if args.json:
-        from .loop import jsonable
-
         print(json.dumps(jsonable(s)))
         return 0
     print(f"effects added: {', '.join(s['effects_added']) or 'none'}")

@@ -15,9 +15,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from solenoid_fmu.fmu import simulate_model
-from solenoid_fmu.loop.diagnose import ResidualCase, conditioned_position, diagnose, residual_case
-from solenoid_fmu.loop.improvement import _cases, _error, improve_tables, split_recordings
-from solenoid_fmu.loop.validate import full_scales, validate_cases
+from solenoid_fmu.loop import ResidualCase, diagnose, improve_tables, split_recordings, validate_cases
+from solenoid_fmu.loop.improvement import _cases, _error
+from solenoid_fmu.loop.metrics import full_scales
+from solenoid_fmu.loop.residuals import residual_case
+from solenoid_fmu.loop.signals import conditioned_position
 from solenoid_fmu.measure import commutation_curve, flux_linkage, make_recording, read_recording
 from solenoid_fmu.rig import Effects, Excitation, TruthModel, measure
 from solenoid_fmu.rig.protocols import random_campaign
@@ -327,7 +329,7 @@ def _first_half(rec):
 
 
 def test_not_identifiable_names_what_to_add(rig_campaign, rig_maps):
-    from solenoid_fmu.loop.improvement import not_identifiable
+    from solenoid_fmu.loop import not_identifiable
 
     recs = [read_recording(p) for p in rig_campaign("friction")]
     assert not_identifiable(recs) == {}  # our rig's campaign has what every effect needs

@@ -7,7 +7,8 @@ hysteresis, a two-section eddy ladder, a thermal model with its own time constan
 import numpy as np
 import pytest
 
-from solenoid_fmu.loop.diagnose import EFFECTS, ResidualCase, diagnose, score_effect
+from solenoid_fmu.loop import ResidualCase
+from solenoid_fmu.loop.diagnosis import EFFECTS, diagnose, score_effect
 from solenoid_fmu.realtime import PreisachHysteresis
 
 RNG = np.random.default_rng(7)

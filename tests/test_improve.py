@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from solenoid_fmu.loop.improvement import ImproveError, improve_tables, split_recordings
+from solenoid_fmu.loop import ImproveError, improve_tables, split_recordings
 from solenoid_fmu.measure import read_recording
 
 #: Which residual signal each effect shows in.
@@ -98,7 +98,7 @@ def test_cli_improve_builds_a_switchable_fmu_and_reports_before_after(rig_maps, 
 
 
 def test_improve_refuses_a_file_that_is_not_an_fmu(tmp_path, rig_campaign):
-    from solenoid_fmu.loop.improvement import improve
+    from solenoid_fmu.loop import improve
 
     bad = tmp_path / "x.fmu"
     bad.write_text("not a zip")
@@ -109,7 +109,7 @@ def test_improve_refuses_a_file_that_is_not_an_fmu(tmp_path, rig_campaign):
 def test_heating_correction_removes_the_eq4_flux_drift(rig_campaign):
     """The rig's heating (C_th 300 J/K, R_th 1 K/W, copper) leaves eq. 4's flux open at the end of a
     closed current cycle; the voltage corrected with the heating model closes it again."""
-    from solenoid_fmu.loop.improvement import heating_corrected
+    from solenoid_fmu.loop import heating_corrected
     from solenoid_fmu.measure import flux_linkage
 
     heating = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": 0.00393}

@@ -7,8 +7,7 @@ import pytest
 
 from solenoid_fmu.cli import main
 from solenoid_fmu.errors import FmuInputError, RecordingError, SolenoidError
-from solenoid_fmu.loop.diagnose import ResidualCase
-from solenoid_fmu.loop.validate import ValidationError, signal_metrics, validate, validate_cases
+from solenoid_fmu.loop import ResidualCase, ValidationError, signal_metrics, validate, validate_cases
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

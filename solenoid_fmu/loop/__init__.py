@@ -1,5 +1,31 @@
 """loop: see the README's package map."""
 
-from .improvement import heating_corrected, improve, jsonable, tables_from_fmu
+from .diagnosis import Diagnosis, diagnose
+from .effects import heating_corrected
+from .identifiability import not_identifiable
+from .improvement import Improvement, improve, improve_tables
+from .metrics import ValidationError, signal_metrics, validate_cases
+from .residuals import ResidualCase, cases_from_recordings
+from .split import split_recordings
+from .tables import ImproveError, tables_from_fmu, with_effects
+from .validation import validate
 
-__all__ = ["heating_corrected", "improve", "jsonable", "tables_from_fmu"]
+__all__ = [
+    "Diagnosis",
+    "ImproveError",
+    "Improvement",
+    "ResidualCase",
+    "ValidationError",
+    "cases_from_recordings",
+    "diagnose",
+    "heating_corrected",
+    "improve",
+    "improve_tables",
+    "not_identifiable",
+    "signal_metrics",
+    "split_recordings",
+    "tables_from_fmu",
+    "validate",
+    "validate_cases",
+    "with_effects",
+]

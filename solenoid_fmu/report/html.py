@@ -255,7 +255,7 @@ def errors_table(before: dict, after: dict | None = None) -> dict:
         signal found in either result (matched by ``file``, in the order of ``before`` then new
         ones of ``after``); a value missing on one side is ``None``, as is the ratio then or
         when the rms before is zero. Without ``after``: columns ``file, signal, rms, max, nrmse,
-        nrmse_fs`` (range-normalized and full-scale-per-kind NRMSE, see :mod:`solenoid_fmu.loop`).
+        nrmse_fs`` (range-normalized and full-scale-per-kind NRMSE, see :mod:`solenoid_fmu.loop.metrics`).
         rms and max are in the signal's SI unit (see the signal name).
     """
     b = _rows_by_file(before)

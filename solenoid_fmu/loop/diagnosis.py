@@ -27,8 +27,9 @@ part of a residual. (A current-sensor gain error is, like a uniformly scaled B(H
 function of Psi: it is reported as ``material``; a sensor offset is not.)
 
 Evidence that cannot be gamed by adding parameters: the features are fitted on one half of the
-data and scored on the other half (two-fold cross-validation over recordings, or over 20
-alternating blocks in time when there is only one recording). The score of an effect is the share of the
+data and scored on the other half (two-fold cross-validation over recordings, dealt out by the
+size of their excitations, or over 20 alternating blocks in time when there is only one
+recording: :func:`solenoid_fmu.loop.split.cv_folds`). The score of an effect is the share of the
 held-out residual variance its fit explains, pooled over all residual signals (each signal
 normalized by its measured range). The verdict is the best effect if its score clears
 ``threshold`` (default 0.25), else ``"unexplained"``: noise cannot be predicted on held-out
@@ -37,68 +38,19 @@ data, so a model that lacks nothing scores near zero everywhere.
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .residuals import ResidualCase
+from .signals import detrend, lowpass
+from .split import cv_folds
 
 EFFECTS = ("hysteresis", "eddy", "heating", "friction", "sensor", "material")
 SIGNALS = ("current_A", "voltage_V", "force_N", "psi_Wb")
 DEFAULT_THRESHOLD = 0.25
 #: Residuals smaller than this RMS share of the measured range are "nothing to explain".
 DEFAULT_MIN_NRMS = 0.003
-#: A flux residual is compared orthogonal to a linear trend when the eq.-4 offset's uncertainty
-#: times the duration exceeds this share of the recording's largest |flux|.
-OFFSET_UNCERTAINTY_SHARE = 1e-3
-
-
-@dataclass
-class ResidualCase:
-    """One recording's residuals and the quantities the signatures are built from (SI).
-
-    Parameters
-    ----------
-    name : str
-        The recording's file name (for reports).
-    time_s : ndarray, shape (n,)
-    psi_Wb : ndarray, shape (n,)
-        Flux linkage along the run (simulated, or from eq. 4).
-    current_A : ndarray, shape (n,)
-        Coil current (measured).
-    position_m : ndarray, shape (n,)
-        Armature gap per sample.
-    resistance_ohm : float
-        Coil resistance used for the i^2 R heating signature.
-    residuals : dict of str -> ndarray
-        Measured minus simulated, per signal name (``current_A``, ``voltage_V``, ``force_N``,
-        ``psi_Wb``).
-    measured : dict of str -> ndarray
-        The measured signals with the same keys (for the sensor signature and normalization).
-    kind : str
-        The recording kind (``flux``, ``force_stroke``, ...); "" when not from a recording.
-    drive : str
-        How the FMU was driven (``"current"`` or ``"voltage"``); "" when not from a recording.
-    path : str
-        The recording's full path; "" when not from a file.
-    detrended : tuple of str
-        Signals whose residual is only known up to a linear trend ``a + b t`` and was projected
-        orthogonal to it (``psi_Wb`` of a recording without a zero-current rest: eq. 4 cannot
-        measure its voltage offset); their features are projected the same way.
-    """
-
-    name: str
-    time_s: np.ndarray
-    psi_Wb: np.ndarray
-    current_A: np.ndarray
-    position_m: np.ndarray
-    resistance_ohm: float
-    residuals: dict
-    measured: dict
-    kind: str = ""
-    drive: str = ""
-    path: str = ""
-    detrended: tuple = ()
 
 
 @dataclass
@@ -146,67 +98,8 @@ def _stop(b: np.ndarray, r: float) -> np.ndarray:
     return out
 
 
-def conditioned_position(x_m: np.ndarray) -> np.ndarray:
-    """A measured armature position [m] without the reversals its noise fakes.
-
-    Position encoders jitter by their noise and resolution; the model's friction (a Dahl state
-    driven by position changes, like the rig's) would take every jitter for a reversal and lose
-    its force. The position is passed through a play operator of half-width
-    ``r = 3 sigma + q`` (``sigma``: robust noise from second differences, ``q``: the encoder
-    step, the smallest non-zero change) and shifted back by ``r`` in the direction of the last
-    motion: while the armature moves, this is the measured position's running extreme (within
-    the noise of the true one); while it stands, the position it stopped at. Positions that never
-    move beyond ``r`` come back unchanged.
-    """
-    x = np.asarray(x_m, dtype=float)
-    if x.size < 5 or not np.all(np.isfinite(x)):
-        return x
-    d = np.abs(np.diff(x))
-    nz = d[d > 0]
-    if nz.size == 0:
-        return x
-    d2 = np.diff(x, 2)
-    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-    r = 3.0 * sigma + float(np.min(nz))
-    if not 0.0 < r < 0.25 * float(np.ptp(x)):
-        return x
-    out = np.empty_like(x)
-    y = float(x[0])
-    direction = 0.0
-    for k, v in enumerate(x.tolist()):
-        if v - r > y:
-            y, direction = v - r, 1.0
-        elif v + r < y:
-            y, direction = v + r, -1.0
-        out[k] = y + r * direction
-    return out
-
-
-def lowpass(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
-    """First-order low-pass y' = (x - y)/tau, exact for piecewise-constant x (any time grid)."""
-    y = np.empty_like(x)
-    acc = 0.0
-    dt = np.diff(t, prepend=t[0])
-    a = np.exp(-dt / tau)
-    for k in range(len(x)):
-        acc = a[k] * acc + (1 - a[k]) * x[k]
-        y[k] = acc
-    return y
-
-
 def _ddt(y: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.gradient(y, t) if len(t) > 2 else np.zeros_like(y)
-
-
-def detrend(y: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``y`` (shape (n,) or (n, p)) less its least-squares fit by ``a + b t`` (per column)."""
-    t = np.asarray(t, dtype=float)
-    if t.size < 3:
-        return np.zeros_like(y)
-    tc = (t - t.mean()) / max(float(np.ptp(t)), 1e-30)
-    basis = np.column_stack([np.ones_like(tc), tc])
-    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-    return y - basis @ coef
 
 
 def features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.ndarray | None:
@@ -287,32 +180,6 @@ def _scales(cases: list[ResidualCase]) -> dict:
             "range": ranges}
 
 
-def _folds(cases: list[ResidualCase]) -> list[tuple[list, list]]:
-    """Two folds of (case index, sample mask) for cross-validation.
-
-    Whole recordings go to one fold or the other: within each kind, ordered by peak current and
-    then by the largest current step, alternately (one toggle running across kinds), so that
-    both folds hold recordings of every kind and size whatever the files are called.
-    """
-    if len(cases) >= 2:
-        by_kind: dict = {}
-        for k, c in enumerate(cases):
-            by_kind.setdefault(c.kind, []).append(k)
-        a, b = [], []
-        toggle = 0
-        for kind in sorted(by_kind):
-            ks = sorted(by_kind[kind], key=lambda k: (-float(np.max(np.abs(cases[k].current_A))),
-                                                      -float(np.max(np.abs(np.diff(cases[k].current_A)),
-                                                                    initial=0.0)), cases[k].name))
-            for k in ks:
-                (a if toggle == 0 else b).append((k, np.ones(len(cases[k].time_s), bool)))
-                toggle ^= 1
-        return [(a, b), (b, a)]
-    n = len(cases[0].time_s)
-    half = (np.arange(n) * 20 // max(n, 1)) % 2 == 0  # 20 alternating blocks: both folds span the run
-    return [([(0, half)], [(0, ~half)]), ([(0, ~half)], [(0, half)])]
-
-
 def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict,
             balanced: bool = False) -> tuple[float, float, int]:
     """Held-out SSE and SS of the normalized residual of ``signal`` fitted by the union of the
@@ -338,7 +205,7 @@ def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict
         data = [None if d is None else (d[0] * (q / max(r, q, 1e-300)), d[1] * (q / max(r, q, 1e-300)))
                 for d, r in zip(data, rms, strict=True)]
     sse, ss, p = 0.0, 0.0, 0
-    for train, test in _folds(cases):
+    for train, test in cv_folds(cases):
         Xt = [data[k][0][m] for k, m in train if data[k] is not None]
         yt = [data[k][1][m] for k, m in train if data[k] is not None]
         Xv = [data[k][0][m] for k, m in test if data[k] is not None]
@@ -454,139 +321,3 @@ def diagnose(cases: list[ResidualCase], effects=EFFECTS, threshold: float = DEFA
     significant = any(v >= min_nrms for v in nrms.values())
     verdict = ranking[0].effect if ranking and significant and ranking[0].score >= threshold else "unexplained"
     return Diagnosis(ranking, verdict, threshold, nrms)
-
-
-# -- from recordings ------------------------------------------------------------------------------
-def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None) -> list[ResidualCase]:
-    """Run the FMU on each recording's measured inputs and collect the residuals.
-
-    Current-driven runs (flux, force_stroke, ramp, eddy) give the flux residual where the
-    recording has a voltage, and the force residual where it has a force. Voltage-driven runs
-    (voltage_step) give the current and force residuals. See :func:`residual_case`.
-
-    Parameters
-    ----------
-    fmu_path : path-like or None
-        A solenoid-fmu FMU (driven with fmpy), or None when ``simulate`` is given.
-    recordings : list of path-like or Recording
-    progress : callable, optional
-        Called with each file name before it is simulated.
-    simulate : callable, optional
-        ``simulate(recording, R_ohm) -> SimulationResult`` instead of the FMU (e.g.
-        :func:`solenoid_fmu.fmu.simulate_model` in process).
-    """
-    from ..fmu import simulate_recording
-    from ..measure import Recording, read_recording
-
-    if simulate is None:
-        def simulate(rec, R_ohm):
-            return simulate_recording(fmu_path, rec, R_ohm=R_ohm)
-
-    cases = []
-    for item in recordings:
-        rec = item if isinstance(item, Recording) else read_recording(item)
-        if progress:
-            progress(rec.path.name if rec.path is not None else rec.kind)
-        if rec.position_m is not None:  # drive the model with the position less its encoder jitter
-            rec = dataclasses.replace(rec, position_m=conditioned_position(rec.position_m))
-        case = residual_case(rec, simulate)
-        if case is not None:
-            cases.append(case)
-    return cases
-
-
-def residual_case(rec, simulate) -> ResidualCase | None:
-    """Residuals of one recording against a simulator (None if it has no signal to compare).
-
-    The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
-    measured voltage with the coil resistance ``R`` of the recording (header or estimate); the
-    simulated one is the same integral of the simulated voltage, ``sum h (U_sim - R i)`` over the
-    steps. For a model with constant resistance this is exactly the simulated flux; a model with
-    coil heating then shows the same ``R(T)`` drift the measurement carries.
-
-    Eq. 4 measures flux *changes*: its integration constant is only known when the recording
-    starts at rest (zero current, demagnetized). Both fluxes are therefore anchored to the
-    model's flux at the first sample (``Psi_sim(0)``, the simulator's start value from the first
-    sample's current and position) and only their changes are compared, which is exact for a
-    recording from rest and the honest comparison for one that starts energized (the report's
-    flux plots say "anchored to the model at t = 0"). A recording without any zero-current rest
-    has no measured voltage offset either: its flux residual is known up to ``a + b t`` and is
-    projected orthogonal to that trend (``ResidualCase.detrended``).
-    """
-    from ..measure import flux_linkage
-
-    residuals, measured = {}, {}
-    fr = None
-    R = rec.coil_resistance_ohm
-    if rec.voltage_V is not None and rec.kind != "voltage_step":
-        fr = flux_linkage(rec)
-        R = fr.resistance_ohm
-    sim = simulate(rec, R)
-    s = sim.recording
-    psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
-    detrended = ()
-    if rec.force_N is not None:
-        residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
-        measured["force_N"] = np.asarray(rec.force_N)
-    if sim.drive_mode == "current":
-        if rec.voltage_V is not None:
-            if fr is None:
-                fr = flux_linkage(rec)
-                R = fr.resistance_ohm
-            t = np.asarray(rec.time_s, dtype=float)
-            i = np.asarray(rec.current_A, dtype=float)
-            inc = np.diff(t) * (np.asarray(s.voltage_V)[1:] - R * i[1:])
-            psi_app = psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)])
-            psi_meas = psi_sim[0] + fr.psi_Wb
-            res = psi_meas - psi_app
-            if fr.offset_uncertainty_Wb > OFFSET_UNCERTAINTY_SHARE * float(np.max(np.abs(psi_meas))):
-                res = detrend(res, t)
-                detrended = ("psi_Wb",)
-            residuals["psi_Wb"] = res
-            measured["psi_Wb"] = psi_meas
-    else:
-        residuals["current_A"] = np.asarray(rec.current_A) - np.asarray(s.current_A)
-        measured["current_A"] = np.asarray(rec.current_A)
-    if not residuals:
-        return None
-    name = rec.path.name if rec.path is not None else rec.kind
-    return ResidualCase(name, np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
-                        np.asarray(rec.positions_m()), R or 1.0, residuals, measured, kind=rec.kind,
-                        drive=sim.drive_mode, path="" if rec.path is None else str(rec.path), detrended=detrended)
-
-
-def add_cli(sub) -> None:
-    """Register ``solenoid-fmu diagnose``."""
-    p = sub.add_parser("diagnose", help="trace the FMU-vs-recording residual to the effect the model lacks")
-    p.add_argument("fmu", help="the FMU (solenoid-fmu export)")
-    p.add_argument("recordings", nargs="+", help="recording CSV files (format v1)")
-    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD,
-                   help=f"held-out explained share needed for a verdict (default {DEFAULT_THRESHOLD})")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cli_diagnose)
-
-
-def _cli_diagnose(args) -> int:
-    import json
-    import sys
-
-    def progress(name):
-        if not args.json:
-            print(f"simulating {name} ...", file=sys.stderr)
-
-    cases = cases_from_recordings(args.fmu, args.recordings, progress=progress)
-    if not cases:
-        print("error: no recording has a signal to compare (voltage, current or force)", file=sys.stderr)
-        return 1
-    d = diagnose(cases, threshold=args.threshold)
-    if args.json:
-        out = d.as_dict()
-        out["ranking"] = [{k: c[k] for k in ("effect", "score", "explained", "per_signal")} for c in out["ranking"]]
-        print(json.dumps(out))
-        return 0
-    print(f"{'effect':<12} {'score':>8} {'explained':>10}   per signal (held-out explained share)")
-    for c in d.ranking:
-        sig = ", ".join(f"{k} {v:.2f}" for k, v in c.per_signal.items())
-        print(f"{c.effect:<12} {c.score:8.3f} {c.explained:10.3f}   {sig}")
-    print(f"verdict: {d.verdict} (threshold {d.threshold:g})")
-    return 0

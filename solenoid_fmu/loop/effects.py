@@ -1,0 +1,259 @@
+"""The effects' fits: each effect's parameters from the recordings or their residuals, by its own regression.
+
+Each fit returns ``(section, note)``: the maps.json ``effects`` section of the effect (see
+:mod:`solenoid_fmu.loop.tables`) and a note for the report (what it was fitted on). The fits:
+
+``hysteresis``
+    Play operator (:func:`solenoid_fmu.realtime.fit_play_to_series`) on the current the maps do
+    not explain, ``i - i_f(Psi, x) - i_eddy`` along the measured flux of the slow (``flux``)
+    recordings: rate-independent, so the slow triangles carry it cleanly.
+``eddy``
+    Ladder ``i_eddy = G e + sum_k G_k lowpass_tau_k(e)`` with ``e = dPsi/dt`` over a fixed grid of
+    time constants (0.1 ms .. 10 ms), non-negative least squares on the ``eddy`` recordings; sections
+    under 3 % of the total conductance are dropped.
+``heating``
+    With the resistance measured before a run, coil heating leaves the eq.-4 flux drifting by
+    ``int (R(T) - R) i dt``; with ``C_th dT/dt = R i^2`` (cooling is negligible within a
+    recording) the drift is ``(alpha R^2 / C_th) int i int i^2``: linear in ``1 / C_th``, fitted by
+    least squares on the flux residual (``R_th`` is not identifiable from short recordings and
+    keeps its default, ``alpha`` is copper's unless the maps say otherwise).
+``friction``
+    Dahl friction in the force, ``F_fr -> +-F_c`` over the presliding displacement, linear in
+    ``F_c`` for each presliding length of a grid (5 um .. 100 um); the best fit wins.
+
+One fit per parameter: the eddy ladder's direct term ``G`` is the single conductance the maps
+already carry (maps.json ``eddy.G_eddy_S``, fitted by :func:`solenoid_fmu.maps.fit_eddy`). The
+ladder fits it again, jointly with its sections (so that they do not absorb the misfit of a value
+fitted without them), and when the ladder is kept its refit *replaces* the maps' value: the fit's
+note says so (``note["G_eddy_S"]``: the maps' value and the refit), and the improved maps'
+``eddy.source`` names the refit (:func:`g_eddy_source`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..measure import flux_linkage
+from ..realtime import COPPER_ALPHA_PER_K, HysteresisError, MapTables, PlayHysteresis, fit_play_to_series
+from .residuals import recording_name
+from .signals import detrend, lowpass
+from .tables import ImproveError
+
+#: Time constants of the eddy-ladder regression [s].
+LADDER_TAUS_S = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
+#: Presliding lengths tried for friction [m].
+PRESLIDING_M = (5e-6, 10e-6, 20e-6, 50e-6, 100e-6)
+
+
+def _i_f(tables: MapTables, psi: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.array([tables.i_f_A(float(p), float(xx)) for p, xx in zip(psi, x, strict=True)])
+
+
+def flux_data(rec, tables: MapTables, flux_of=flux_linkage):
+    """(t, Psi, dPsi/dt, i, x) of a recording from paper eq. 4, or None if its flux is not absolute.
+
+    A recording that starts energized has Psi anchored to the maps' flux at the first sample's
+    current and position (the integration constant eq. 4 cannot give); one without any
+    zero-current rest (no measured voltage offset) is left out (None).
+    """
+    fr = flux_of(rec)
+    if not fr.offset_measured:
+        return None
+    t = np.asarray(rec.time_s, dtype=float)
+    x = np.asarray(rec.positions_m(), dtype=float)
+    psi = np.asarray(fr.psi_Wb, dtype=float)
+    if not fr.starts_at_rest:
+        psi = psi + tables.psi_of_current(float(fr.current_A[0]), float(x[0]))
+    return t, psi, np.gradient(psi, t), np.asarray(rec.current_A, dtype=float), x
+
+
+def _eddy_current(tables, effects, e, t) -> np.ndarray:
+    G0 = tables.G_eddy_S or 0.0
+    out = G0 * e
+    lad = effects.get("eddy_ladder")
+    if lad:
+        for G, tau in zip(lad["G_S"], lad["tau_s"], strict=True):
+            out = out + G * lowpass(e, t, tau)
+    return out
+
+
+def _hyst_current(effects, psi) -> np.ndarray:
+    hy = effects.get("hysteresis")
+    if not hy:
+        return np.zeros_like(psi)
+    shape = hy.get("shape")
+    play = PlayHysteresis(hy["thresholds"], hy["weights"],
+                          shape=None if not shape else (shape["b_nodes"], shape["g_nodes"]), b0=float(psi[0]))
+    return play.run(psi)
+
+
+# -- fits ----------------------------------------------------------------------------------------
+def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[dict, dict]:
+    """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note)."""
+    recs = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
+    if not recs:
+        recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
+    if not recs:
+        raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
+    bs, hs, used = [], [], []
+    for rec in recs:
+        data = flux_data(rec, tables, flux_of)
+        if data is None:
+            continue
+        t, psi, e, i, x = data
+        h = i - _i_f(tables, psi, x) - _eddy_current(tables, effects, e, t)
+        step = max(1, psi.size // 3000)  # rate-independent: a decimated series keeps the loops
+        bs.append(psi[::step])
+        hs.append(h[::step])
+        used.append(rec)
+    if not bs:
+        raise ImproveError("hysteresis: not identifiable from these recordings: add a slow 'flux' recording "
+                           "(triangles from zero current, with a zero-current rest for the voltage offset)")
+    try:
+        fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0)
+    except HysteresisError as exc:
+        raise ImproveError(f"hysteresis: {exc}") from None
+    d = fit.play.to_dict()
+    section = {"thresholds": d["thresholds"], "weights": d["weights"], "shape": d["shape"]}
+    return section, {"fitted_on": [recording_name(r) for r in used], "rms_A": fit.rms}
+
+
+def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[dict, dict]:
+    """Eddy-current ladder by NNLS over fixed time constants; (section, note).
+
+    The note's ``G_eddy_S`` is ``{"maps": the maps' G_eddy [S] or None, "refit": G [S], "kept":
+    ...}``: the ladder's direct term, which replaces the maps' value with the ladder (module
+    docstring).
+    """
+    # lazy: scipy.optimize takes ~0.15 s to import and only this fit needs it (command-line start-up)
+    from scipy.optimize import nnls
+
+    recs = [r for r in recordings if r.kind == "eddy" and r.voltage_V is not None]
+    if not recs:
+        raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
+    rows, ys, used = [], [], []
+    for rec in recs:
+        data = flux_data(rec, tables, flux_of)
+        if data is None:
+            continue
+        t, psi, e, i, x = data
+        y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
+        cols = [e] + [lowpass(e, t, tau) for tau in LADDER_TAUS_S]
+        rows.append(np.column_stack(cols))
+        ys.append(y)
+        used.append(rec)
+    if not rows:
+        raise ImproveError("eddy: not identifiable from these recordings: add fast 'eddy' triangles with a "
+                           "zero-current rest (for the voltage offset)")
+    A, y = np.vstack(rows), np.concatenate(ys)
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-30)
+    coef, _ = nnls(A / scale, y)
+    coef = coef / scale
+    G0, Gk = float(coef[0]), coef[1:]
+    total = G0 + float(Gk.sum())
+    keep = Gk > 0.03 * max(total, 1e-30)
+    if not keep.any():
+        raise ImproveError("eddy: no ladder section with a share above 3 % (a single G_eddy explains the data)")
+    section = {"G_S": [float(g) for g in Gk[keep]], "tau_s": [float(tau) for tau, k in zip(LADDER_TAUS_S, keep,
+                                                                                          strict=True) if k]}
+    g_eddy = {"maps": tables.G_eddy_S, "refit": G0,
+              "kept": "the refit: it replaces the maps' G_eddy when the ladder is kept (fitted with the ladder)"}
+    return section, {"fitted_on": [recording_name(r) for r in used], "G_eddy_S": g_eddy}
+
+
+def g_eddy_source(tables, note: dict) -> str:
+    """maps.json ``eddy.source`` for the G_eddy a kept ladder brings (its fit's ``note``)."""
+    old = (tables.meta.get("eddy") or {}).get("source") or "unknown"
+    was = note["G_eddy_S"]["maps"]
+    was = "none" if was is None else f"{was:.6g} S"
+    return (f"refit with the eddy ladder by improve on {', '.join(note['fitted_on'])} "
+            f"(replaces the maps' G_eddy, {was}, from: {old})")
+
+
+def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
+    """``C_th`` from the eq.-4 flux residual of current-driven recordings (see module docstring)."""
+    alpha = float(((tables.meta.get("coil") or {}).get("temperature_coefficient_per_K")) or COPPER_ALPHA_PER_K)
+    num = den = 0.0
+    used = []
+    for c in cases:
+        r = c.residuals.get("psi_Wb")
+        if r is None:
+            continue
+        t, i, R = c.time_s, c.current_A, c.resistance_ohm
+        dt = np.diff(t)
+        energy = np.concatenate([[0.0], np.cumsum(dt * i[1:] ** 2)])  # int i^2 dt
+        phi = alpha * R * R * np.concatenate([[0.0], np.cumsum(dt * i[1:] * energy[1:])])
+        if "psi_Wb" in c.detrended:
+            phi = detrend(phi, t)
+        num += float(phi @ r)
+        den += float(phi @ phi)
+        used.append(c.name)
+    if den <= 0.0 or num <= 0.0:
+        raise ImproveError("heating: the flux residual does not drift with the dissipated energy")
+    C_th = den / num
+    return ({"C_th_J_per_K": C_th, "R_th_K_per_W": 1.0, "alpha_per_K": alpha},
+            {"fitted_on": used})
+
+
+def heating_corrected(rec, heating: dict, R_ohm: float | None = None):
+    """The recording with the coil heating's resistive voltage removed (for a heating-free eq.-4 flux).
+
+    With the heating sub-model's parameters (``C_th_J_per_K``, ``R_th_K_per_W``, ``alpha_per_K``) the
+    temperature rise along the recording is integrated from the measured current,
+    ``C_th dT/dt = R (1 + alpha T) i^2 - T / R_th``, and ``R alpha T i`` is subtracted from the voltage,
+    so that paper eq. 4 with the resistance measured before the run gives the flux of a coil at constant
+    temperature. ``R_ohm`` [ohm] defaults to the header's resistance. Returns a new Recording (same
+    kind, header noted); recordings without a voltage are returned unchanged.
+    """
+    if rec.voltage_V is None:
+        return rec
+    R = float(R_ohm if R_ohm is not None else rec.coil_resistance_ohm)
+    C, Rth, alpha = heating["C_th_J_per_K"], heating["R_th_K_per_W"], heating["alpha_per_K"]
+    t = np.asarray(rec.time_s, dtype=float)
+    i = np.asarray(rec.current_A, dtype=float)
+    T = np.zeros_like(t)
+    for k in range(1, t.size):
+        Tk = T[k - 1]
+        T[k] = Tk + (t[k] - t[k - 1]) * (R * (1.0 + alpha * Tk) * i[k] ** 2 - Tk / Rth) / C
+    header = dict(rec.header)
+    note = f"voltage corrected for coil heating (C_th {C:.4g} J/K)"
+    header["notes"] = f"{header['notes']}; {note}" if header.get("notes") else note
+    return replace(rec, voltage_V=np.asarray(rec.voltage_V, dtype=float) - R * alpha * T * i, header=header)
+
+
+def _dahl(x: np.ndarray, presliding_m: float) -> np.ndarray:
+    """Dahl friction state for F_c = 1 along positions ``x`` (same update as model.py)."""
+    f = np.zeros_like(x)
+    for k in range(1, x.size):
+        dx = x[k] - x[k - 1]
+        prev = f[k - 1]
+        if dx != 0.0:
+            target = 1.0 if dx > 0.0 else -1.0
+            prev = target + (prev - target) * math.exp(-abs(dx) / presliding_m)
+        f[k] = prev
+    return f
+
+
+def fit_friction(tables, effects, cases) -> tuple[dict, dict]:
+    """Friction force and presliding length from the force residual where the armature moves."""
+    moving = [c for c in cases if "force_N" in c.residuals and np.ptp(c.position_m) > 0]
+    if not moving:
+        raise ImproveError("friction: no recording with force and a moving armature")
+    best = None
+    res = [c.residuals["force_N"] - np.mean(c.residuals["force_N"]) for c in moving]
+    for p in PRESLIDING_M:
+        phis = [_dahl(np.asarray(c.position_m, dtype=float), p) for c in moving]
+        phis = [phi - phi.mean() for phi in phis]
+        den = sum(float(phi @ phi) for phi in phis)
+        if den <= 0:
+            continue
+        Fc = sum(float(phi @ r) for phi, r in zip(phis, res, strict=True)) / den
+        sse = sum(float(np.sum((r - Fc * phi) ** 2)) for phi, r in zip(phis, res, strict=True))
+        if best is None or sse < best[0]:
+            best = (sse, Fc, p)
+    if best is None or best[1] <= 0.0:
+        raise ImproveError("friction: the force residual does not flip with the direction of motion")
+    return {"force_N": float(best[1]), "presliding_m": float(best[2])}, {"fitted_on": [c.name for c in moving]}

@@ -1,0 +1,191 @@
+"""Residual cases: run a simulator on each recording's measured inputs and keep measured minus simulated.
+
+A :class:`ResidualCase` holds one recording's residuals and the quantities the diagnosis's
+signatures are built from; :func:`cases_from_recordings` makes them with the FMU (fmpy) or an
+in-process simulator, :func:`residual_case` for one recording (how the eq.-4 flux is compared).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fmu import simulate_recording
+from ..measure import Recording, flux_linkage, read_recording
+from .signals import conditioned_position, detrend
+
+#: A flux residual is compared orthogonal to a linear trend when the eq.-4 offset's uncertainty
+#: times the duration exceeds this share of the recording's largest |flux|.
+OFFSET_UNCERTAINTY_SHARE = 1e-3
+
+
+@dataclass
+class ResidualCase:
+    """One recording's residuals and the quantities the signatures are built from (SI).
+
+    Parameters
+    ----------
+    name : str
+        The recording's file name (for reports).
+    time_s : ndarray, shape (n,)
+    psi_Wb : ndarray, shape (n,)
+        Flux linkage along the run (simulated, or from eq. 4).
+    current_A : ndarray, shape (n,)
+        Coil current (measured).
+    position_m : ndarray, shape (n,)
+        Armature gap per sample.
+    resistance_ohm : float
+        Coil resistance used for the i^2 R heating signature.
+    residuals : dict of str -> ndarray
+        Measured minus simulated, per signal name (``current_A``, ``voltage_V``, ``force_N``,
+        ``psi_Wb``).
+    measured : dict of str -> ndarray
+        The measured signals with the same keys (for the sensor signature and normalization).
+    kind : str
+        The recording kind (``flux``, ``force_stroke``, ...); "" when not from a recording.
+    drive : str
+        How the FMU was driven (``"current"`` or ``"voltage"``); "" when not from a recording.
+    path : str
+        The recording's full path; "" when not from a file.
+    detrended : tuple of str
+        Signals whose residual is only known up to a linear trend ``a + b t`` and was projected
+        orthogonal to it (``psi_Wb`` of a recording without a zero-current rest: eq. 4 cannot
+        measure its voltage offset); their features are projected the same way.
+    """
+
+    name: str
+    time_s: np.ndarray
+    psi_Wb: np.ndarray
+    current_A: np.ndarray
+    position_m: np.ndarray
+    resistance_ohm: float
+    residuals: dict
+    measured: dict
+    kind: str = ""
+    drive: str = ""
+    path: str = ""
+    detrended: tuple = ()
+
+
+class FluxCache:
+    """The eq.-4 flux (:func:`solenoid_fmu.measure.flux_linkage`) of each recording, computed once.
+
+    Call it like ``flux_linkage(rec)``; results are kept per recording object while the cache
+    lives (``improve`` keeps one per run: the flux of a recording does not change between its
+    simulations, the identifiability check and the fits).
+    """
+
+    def __init__(self):
+        self._by_id: dict = {}
+
+    def __call__(self, rec):
+        hit = self._by_id.get(id(rec))
+        if hit is None or hit[0] is not rec:
+            hit = self._by_id[id(rec)] = (rec, flux_linkage(rec))
+        return hit[1]
+
+
+def recording_name(rec) -> str:
+    """How reports name a recording: its file name, or its kind when it has no file."""
+    return rec.path.name if rec.path is not None else rec.kind
+
+
+def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
+                          flux_of=flux_linkage) -> list[ResidualCase]:
+    """Run the FMU on each recording's measured inputs and collect the residuals.
+
+    Current-driven runs (flux, force_stroke, ramp, eddy) give the flux residual where the
+    recording has a voltage, and the force residual where it has a force. Voltage-driven runs
+    (voltage_step) give the current and force residuals. See :func:`residual_case`.
+
+    Parameters
+    ----------
+    fmu_path : path-like or None
+        A solenoid-fmu FMU (driven with fmpy), or None when ``simulate`` is given.
+    recordings : list of path-like or Recording
+    progress : callable, optional
+        Called with each file name before it is simulated.
+    simulate : callable, optional
+        ``simulate(recording, R_ohm) -> SimulationResult`` instead of the FMU (e.g.
+        :func:`solenoid_fmu.fmu.simulate_model` in process).
+    flux_of : callable, optional
+        ``flux_of(recording) -> FluxResult``, the eq.-4 flux of a recording as read (default
+        :func:`solenoid_fmu.measure.flux_linkage`; a :class:`FluxCache` computes it once).
+    """
+    if simulate is None:
+        def simulate(rec, R_ohm):
+            return simulate_recording(fmu_path, rec, R_ohm=R_ohm)
+
+    cases = []
+    for item in recordings:
+        rec = item if isinstance(item, Recording) else read_recording(item)
+        if progress:
+            progress(recording_name(rec))
+        read = rec
+        if rec.position_m is not None:  # drive the model with the position less its encoder jitter
+            rec = dataclasses.replace(rec, position_m=conditioned_position(rec.position_m))
+        # the flux does not depend on the position: that of the recording as read
+        case = residual_case(rec, simulate, flux_of=lambda _rec, read=read: flux_of(read))
+        if case is not None:
+            cases.append(case)
+    return cases
+
+
+def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
+    """Residuals of one recording against a simulator (None if it has no signal to compare).
+
+    The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
+    measured voltage with the coil resistance ``R`` of the recording (header or estimate); the
+    simulated one is the same integral of the simulated voltage, ``sum h (U_sim - R i)`` over the
+    steps. For a model with constant resistance this is exactly the simulated flux; a model with
+    coil heating then shows the same ``R(T)`` drift the measurement carries.
+
+    Eq. 4 measures flux *changes*: its integration constant is only known when the recording
+    starts at rest (zero current, demagnetized). Both fluxes are therefore anchored to the
+    model's flux at the first sample (``Psi_sim(0)``, the simulator's start value from the first
+    sample's current and position) and only their changes are compared, which is exact for a
+    recording from rest and the honest comparison for one that starts energized (the report's
+    flux plots say "anchored to the model at t = 0"). A recording without any zero-current rest
+    has no measured voltage offset either: its flux residual is known up to ``a + b t`` and is
+    projected orthogonal to that trend (``ResidualCase.detrended``). ``flux_of`` computes the
+    eq.-4 flux (default :func:`solenoid_fmu.measure.flux_linkage`).
+    """
+    residuals, measured = {}, {}
+    fr = None
+    R = rec.coil_resistance_ohm
+    if rec.voltage_V is not None and rec.kind != "voltage_step":
+        fr = flux_of(rec)
+        R = fr.resistance_ohm
+    sim = simulate(rec, R)
+    s = sim.recording
+    psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
+    detrended = ()
+    if rec.force_N is not None:
+        residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
+        measured["force_N"] = np.asarray(rec.force_N)
+    if sim.drive_mode == "current":
+        if rec.voltage_V is not None:
+            if fr is None:
+                fr = flux_of(rec)
+                R = fr.resistance_ohm
+            t = np.asarray(rec.time_s, dtype=float)
+            i = np.asarray(rec.current_A, dtype=float)
+            inc = np.diff(t) * (np.asarray(s.voltage_V)[1:] - R * i[1:])
+            psi_app = psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)])
+            psi_meas = psi_sim[0] + fr.psi_Wb
+            res = psi_meas - psi_app
+            if fr.offset_uncertainty_Wb > OFFSET_UNCERTAINTY_SHARE * float(np.max(np.abs(psi_meas))):
+                res = detrend(res, t)
+                detrended = ("psi_Wb",)
+            residuals["psi_Wb"] = res
+            measured["psi_Wb"] = psi_meas
+    else:
+        residuals["current_A"] = np.asarray(rec.current_A) - np.asarray(s.current_A)
+        measured["current_A"] = np.asarray(rec.current_A)
+    if not residuals:
+        return None
+    return ResidualCase(recording_name(rec), np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
+                        np.asarray(rec.positions_m()), R or 1.0, residuals, measured, kind=rec.kind,
+                        drive=sim.drive_mode, path="" if rec.path is None else str(rec.path), detrended=detrended)

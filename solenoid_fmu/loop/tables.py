@@ -1,0 +1,75 @@
+"""The model's maps with effects: read them from an FMU, add effect sections, write the improved maps.
+
+The improved FMU carries the effects as switchable sub-models with parameters, from the
+``effects`` section of its maps.json (:data:`ADDABLE` names the section of each effect); their
+equations are in :meth:`solenoid_fmu.realtime.model.SolenoidModel._step_fx`.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SolenoidError
+from ..fileio import atomic_write_bytes, atomic_write_text
+from ..realtime import MapTables, ModelError, load_tables
+
+#: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
+ADDABLE = {"hysteresis": "hysteresis", "eddy": "eddy_ladder", "heating": "heating", "friction": "friction"}
+
+
+class ImproveError(SolenoidError):
+    """The improvement loop cannot run (no recordings, an FMU without maps, ...)."""
+
+
+def tables_from_fmu(fmu_path) -> tuple[MapTables, dict]:
+    """The maps an FMU carries (resources/maps.npz + maps.json) and the raw maps.json dict."""
+    fmu_path = Path(fmu_path)
+    if not fmu_path.is_file():
+        raise ImproveError(f"{fmu_path}: FMU file not found")
+    try:
+        with zipfile.ZipFile(fmu_path) as zf, tempfile.TemporaryDirectory(prefix="solenoid_improve_") as tmp:
+            for name in ("maps.npz", "maps.json"):
+                Path(tmp, name).write_bytes(zf.read(f"resources/{name}"))
+            tab = load_tables(tmp)
+            meta = json.loads(Path(tmp, "maps.json").read_text(encoding="utf-8"))
+    except (KeyError, zipfile.BadZipFile, OSError) as exc:
+        raise ImproveError(f"{fmu_path}: not a solenoid-fmu FMU with maps in resources/ ({exc})") from None
+    except ModelError as exc:  # load_tables: the maps are not readable or not valid (ModelMapsError)
+        raise ImproveError(f"{fmu_path}: {exc}") from None
+    tab.where = str(fmu_path)
+    return tab, meta
+
+
+def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None,
+                 G_eddy_source: str = "") -> MapTables:
+    """A copy of ``tables`` whose maps.json meta carries ``effects``.
+
+    ``G_eddy_S`` [S], if given, *replaces* the maps' eddy conductance (maps.json ``eddy.G_eddy_S``,
+    fitted by :func:`solenoid_fmu.maps.fit_eddy`); ``G_eddy_source`` then says where the new value
+    comes from and becomes ``eddy.source``, so the improved maps do not claim the old fit for it.
+    """
+    meta = json.loads(json.dumps(tables.meta))
+    meta["effects"] = effects
+    if G_eddy_S is not None:
+        meta["eddy"] = dict(meta.get("eddy") or {}, G_eddy_S=float(G_eddy_S))
+        if G_eddy_source:
+            meta["eddy"]["source"] = G_eddy_source
+    t = tables.tables()
+    psi = np.arange(tables.n_psi) * tables.dpsi_Wb
+    return MapTables(psi, t["x_m"], t["i_f_A"], t["force_N"], extrapolated=tables.extrapolated, meta=meta,
+                     where=tables.where, i_fem_max_A=tables.i_fem_max_A)
+
+
+def write_maps_dir(tables: MapTables, fmu_path, dest_dir) -> Path:
+    """Write the improved maps directory (the FMU's maps.npz, maps.json with the effects)."""
+    dest_dir = Path(dest_dir)
+    dest_dir.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(fmu_path) as zf:
+        atomic_write_bytes(dest_dir / "maps.npz", zf.read("resources/maps.npz"))
+    atomic_write_text(dest_dir / "maps.json", json.dumps(tables.meta, indent=1, sort_keys=True) + "\n")
+    return dest_dir

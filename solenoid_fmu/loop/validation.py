@@ -1,0 +1,143 @@
+"""Validation: run the FMU on measured inputs and compare every output a recording has.
+
+For each recording the FMU is driven by the recording's measured inputs
+(:func:`solenoid_fmu.loop.residuals.cases_from_recordings`, which calls
+:func:`solenoid_fmu.fmu.simulate_recording`): current-driven for ``flux``, ``force_stroke``,
+``ramp`` and ``eddy``, voltage-driven for ``voltage_step``. The outputs compared:
+
+============= =====================================================================================
+signal        measured vs simulated
+============= =====================================================================================
+``force_N``   the measured force vs the FMU's F(Psi, x) (paper eq. 3), where the recording has force
+``psi_Wb``    flux linkage from the measured voltage (paper eq. 4, offset removed) vs the FMU's Psi,
+              for current-driven runs with a voltage column; both anchored to the model's Psi at
+              the first sample (eq. 4 gives changes: a recording may start energized), and
+              without any zero-current rest compared orthogonal to a linear trend (unknown offset)
+``current_A`` the measured current vs the FMU's (paper eqs. 1-2), for voltage-driven runs
+============= =====================================================================================
+
+The metrics (``rms``, ``max``, ``nrmse``, ``nrmse_fs``) are defined in :mod:`solenoid_fmu.loop.metrics`,
+the figures drawn by :mod:`solenoid_fmu.loop.plots`.
+
+Output (:func:`validate_cases`, :func:`validate`; JSON as printed by ``solenoid-fmu validate --json``)::
+
+    {"recordings": [{"file": "01_flux_0p50A.csv", "kind": "flux", "drive": "current",
+                     "signals": {"psi_Wb": {"rms": ..., "max": ..., "nrmse": ..., "n": ...}}}, ...],
+     "summary": {"psi_Wb": {"nrmse_mean": ..., "nrmse_max": ..., "n_recordings": ...}, ...},
+     "figures": ["report/01_flux_0p50A_overlay.png", ...]}
+
+Command line: ``solenoid-fmu validate build/NAME.fmu RECORDING.csv... [--report DIR] [--json]``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..errors import FmuInputError, RecordingError
+from ..fileio import atomic_write_text
+from ..measure import Recording, flux_linkage, read_recording
+from .metrics import ValidationError, summarize, validate_cases
+from .plots import plot_overlay, plot_residual
+from .residuals import cases_from_recordings
+
+
+def _unique_stems(names: list[str]) -> list[str]:
+    seen: dict[str, int] = {}
+    out = []
+    for name in names:
+        stem = Path(name).stem or "recording"
+        n = seen.get(stem, 0) + 1
+        seen[stem] = n
+        out.append(stem if n == 1 else f"{stem}_{n}")
+    return out
+
+
+# -- the validation run -------------------------------------------------------------------------------
+def _read_all(recordings) -> list:
+    """Read every recording first, so a bad file fails before any simulation (all problems listed)."""
+    recs, problems = [], []
+    for item in recordings:
+        if isinstance(item, Recording):
+            recs.append(item)
+            continue
+        try:
+            recs.append(read_recording(item))
+        except RecordingError as exc:
+            problems += exc.problems
+    if problems:
+        raise RecordingError("validate: recordings", problems)
+    return recs
+
+
+def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=flux_linkage) -> dict:
+    """Run the FMU on each recording's measured inputs and compare every output it has.
+
+    Parameters
+    ----------
+    fmu_path : path-like
+        A solenoid-fmu FMU (``solenoid-fmu export``).
+    recordings : list of path-like or solenoid_fmu.measure.Recording
+        Recordings (format v1). All are read before the first simulation.
+    report_dir : path-like, optional
+        When given: ``<stem>_overlay.png`` and ``<stem>_residual.png`` per recording and
+        ``validation.json`` (the returned dict) are written there (atomically).
+    progress : callable, optional
+        Called with each file name before it is simulated.
+    flux_of : callable, optional
+        ``flux_of(recording) -> FluxResult`` (default :func:`solenoid_fmu.measure.flux_linkage`; a
+        :class:`~solenoid_fmu.loop.residuals.FluxCache` shared with other steps computes it once).
+
+    Returns
+    -------
+    dict
+        As :func:`validate_cases`, each recording entry also with ``path`` and ``figures``
+        (``{"overlay": path, "residual": path}``, empty without ``report_dir``); ``figures`` at
+        the top level lists every figure path in recording order (overlay, residual). A
+        recording with nothing to compare (no force, no voltage in a current-driven run) gets
+        empty ``signals`` and a ``note``.
+
+    Raises
+    ------
+    FmuInputError
+        The FMU file does not exist or is not a solenoid-fmu FMU, or refused a recording.
+    RecordingError
+        A recording cannot be read or is malformed (every file's problems listed).
+    ValidationError
+        No recordings given.
+    """
+    fmu_path = Path(fmu_path)
+    if not fmu_path.is_file():
+        raise FmuInputError(f"{fmu_path}: FMU file not found")
+    recordings = list(recordings)
+    if not recordings:
+        raise ValidationError("validate needs at least one recording")
+    recs = _read_all(recordings)
+    names = [r.path.name if r.path is not None else f"{r.kind}.csv" for r in recs]
+    stems = _unique_stems(names)
+    out_dir = None if report_dir is None else Path(report_dir)
+    entries, figures = [], []
+    for rec, name, stem in zip(recs, names, stems, strict=True):
+        found = cases_from_recordings(fmu_path, [rec], progress=progress, flux_of=flux_of)
+        if not found:
+            entry = {"file": name, "kind": rec.kind, "drive": "", "signals": {},
+                     "note": "nothing to compare (no force; no voltage in a current-driven run)"}
+            if rec.path is not None:
+                entry["path"] = str(rec.path)
+            entry["figures"] = {}
+            entries.append(entry)
+            continue
+        case = found[0]
+        entry = validate_cases([case])["recordings"][0]
+        entry["file"] = name
+        entry["figures"] = {}
+        if out_dir is not None:
+            ov = plot_overlay(case, out_dir / f"{stem}_overlay.png")
+            rs = plot_residual(case, out_dir / f"{stem}_residual.png")
+            entry["figures"] = {"overlay": str(ov), "residual": str(rs)}
+            figures += [str(ov), str(rs)]
+        entries.append(entry)
+    result = {"fmu": str(fmu_path), "recordings": entries, "summary": summarize(entries), "figures": figures}
+    if out_dir is not None:
+        atomic_write_text(out_dir / "validation.json", json.dumps(result, indent=2) + "\n")
+    return result
