@@ -49,7 +49,7 @@ from .field import load_geometry
 from .fileio import atomic_write_text, jsonable, refuse_overwriting_inputs, require_directory
 from .fmu import build_fmu
 from .identification import identify_from_recordings
-from .loop import heating_corrected, improve, tables_from_fmu
+from .loop import effects_summary_lines, heating_corrected, improve, tables_from_fmu
 from .maps import (
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
@@ -305,9 +305,7 @@ def _cli(args) -> int:
     if args.json:
         print(json.dumps(jsonable(s)))
         return 0
-    print(f"effects added: {', '.join(s['effects_added']) or 'none'}")
-    for effect, what in s["not_identifiable"].items():
-        print(f"{effect}: not identifiable from these recordings: {what}")
+    print("\n".join(effects_summary_lines(s)))
     print(f"{'file':<28} {'signal':<10} {'NRMSE(FS) before':>17} {'after':>9}")
     for e in s["errors"]:
         b = "n/a" if e["before_nrmse_fs"] is None else f"{e['before_nrmse_fs'] * 100:.3f} %"

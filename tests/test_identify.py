@@ -110,6 +110,7 @@ def _hill_steel():
     return bh_curve_from_table(H, MU_0 * H + 1.95 * (H / Hk) ** n / (1 + (H / Hk) ** n), name="hill")
 
 
+@pytest.mark.slow
 def test_synthetic_truth_of_another_shape_recovered():
     """True steel of another shape than the start: stage 1 cannot match it, stage 2 must."""
     geom = load_geometry()
@@ -157,6 +158,7 @@ def test_auglag_reference_reports_in_words_and_stays_feasible():
     assert res.mae_after <= res.extra["auglag_mae_at_start_parameters"] + 1e-12
 
 
+@pytest.mark.slow
 def test_demo_campaign_with_hysteresis_and_noise(tmp_path):
     """The command line on the demo campaign (all kinds of recordings; hysteresis, noise, eddy
     ladder, friction): curve within 5 % of the truth over the identified range, force within 5 %."""

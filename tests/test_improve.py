@@ -68,6 +68,7 @@ def test_split_keeps_the_largest_excitation_for_fitting_and_validates_on_the_res
     assert all(r.kind not in ("ramp", "voltage_step") for r in fit)  # single recordings: validation only
 
 
+@pytest.mark.slow
 def test_cli_improve_builds_a_switchable_fmu_and_reports_before_after(rig_maps, rig_campaign, tmp_path, capsys):
     import fmpy.validation
 

@@ -9,6 +9,8 @@ import pytest
 from solenoid_fmu.pipeline import PipelineError, find_recordings
 
 DEMO = Path(__file__).resolve().parent.parent / "fitting" / "ps45-demo"
+pytestmark = pytest.mark.slow  # the pipeline on the demo campaign takes ~100 s
+
 WORDS = {"hysteresis", "eddy", "heating", "friction", "sensor", "material"}
 
 

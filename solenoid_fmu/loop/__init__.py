@@ -3,7 +3,7 @@
 from .diagnosis import Diagnosis, diagnose
 from .effects import heating_corrected
 from .identifiability import not_identifiable
-from .improvement import Improvement, improve, improve_tables
+from .improvement import Improvement, effects_summary_lines, improve, improve_tables
 from .metrics import ValidationError, signal_metrics, validate_cases
 from .residuals import ResidualCase, cases_from_recordings
 from .split import split_recordings
@@ -18,6 +18,7 @@ __all__ = [
     "ValidationError",
     "cases_from_recordings",
     "diagnose",
+    "effects_summary_lines",
     "heating_corrected",
     "improve",
     "improve_tables",

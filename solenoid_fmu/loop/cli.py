@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..fileio import jsonable, refuse_overwriting_inputs, require_directory
 from .diagnosis import DEFAULT_THRESHOLD, diagnose
-from .improvement import DEFAULT_MAX_EFFECTS, DEFAULT_MIN_GAIN, improve
+from .improvement import DEFAULT_MAX_EFFECTS, DEFAULT_MIN_GAIN, effects_summary_lines, improve
 from .metrics import fmt
 from .residuals import cases_from_recordings
 from .validation import validate
@@ -22,6 +22,12 @@ def add_cli(sub) -> None:
     _add_improve(sub)
 
 
+def _fmu_and_recordings(p, fmu_help: str, **kind) -> None:
+    """The positional arguments every loop command takes: the FMU, then one or more recordings."""
+    p.add_argument("fmu", help=fmu_help, **kind)
+    p.add_argument("recordings", nargs="+", help="recording CSV files (format v1)", **kind)
+
+
 # -- validate ---------------------------------------------------------------------------------------
 def _add_validate(sub) -> None:
     p = sub.add_parser(
@@ -29,8 +35,7 @@ def _add_validate(sub) -> None:
         description="Drive the FMU with each recording's measured inputs (current, or voltage for voltage_step) "
                     "and compare every output the recording has: force, flux linkage (from the measured "
                     "voltage, paper eq. 4), current. nrmse = RMS error / range of the measured signal.")
-    p.add_argument("fmu", type=Path, help="the FMU (solenoid-fmu export)")
-    p.add_argument("recordings", nargs="+", type=Path, help="recording CSV files (format v1)")
+    _fmu_and_recordings(p, "the FMU (solenoid-fmu export)", type=Path)
     p.add_argument("--report", type=Path, metavar="DIR",
                    help="write overlay and residual plots per recording and validation.json into DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (progress stays on stderr)")
@@ -68,8 +73,7 @@ def _cli_validate(args) -> int:
 # -- diagnose ---------------------------------------------------------------------------------------
 def _add_diagnose(sub) -> None:
     p = sub.add_parser("diagnose", help="trace the FMU-vs-recording residual to the effect the model lacks")
-    p.add_argument("fmu", help="the FMU (solenoid-fmu export)")
-    p.add_argument("recordings", nargs="+", help="recording CSV files (format v1)")
+    _fmu_and_recordings(p, "the FMU (solenoid-fmu export)")
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD,
                    help=f"held-out explained share needed for a verdict (default {DEFAULT_THRESHOLD})")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -102,8 +106,7 @@ def _cli_diagnose(args) -> int:
 # -- improve ----------------------------------------------------------------------------------------
 def _add_improve(sub) -> None:
     p = sub.add_parser("improve", help="add the diagnosed effects to the model, fit, validate, export")
-    p.add_argument("fmu", help="the FMU to improve (solenoid-fmu export)")
-    p.add_argument("recordings", nargs="+", help="recording CSV files (format v1)")
+    _fmu_and_recordings(p, "the FMU to improve (solenoid-fmu export)")
     p.add_argument("-o", "--output", required=True, help="the improved FMU to write")
     p.add_argument("--report", help="directory for figures and improve.json")
     p.add_argument("--max-effects", type=int, default=DEFAULT_MAX_EFFECTS)
@@ -126,9 +129,7 @@ def _cli_improve(args) -> int:
         out = {k: res[k] for k in ("effects_added", "steps", "recordings", "fmu", "improved_fmu", "not_identifiable")}
         print(json.dumps(jsonable(out)))
         return 0
-    print(f"effects added: {', '.join(res['effects_added']) or 'none'}")
-    for effect, what in res["not_identifiable"].items():
-        print(f"{effect}: not identifiable from these recordings: {what}")
+    print("\n".join(effects_summary_lines(res)))
     print(f"{'file':<28} {'split':<9} {'signal':<10} {'rms before':>12} {'rms after':>12} {'ratio':>7}")
     for row in res["recordings"]:
         for sig, m in row["signals"].items():

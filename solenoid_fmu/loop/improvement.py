@@ -304,3 +304,12 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
         Path(report_dir).mkdir(parents=True, exist_ok=True)
         atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result), indent=1) + "\n")
     return result
+
+
+def effects_summary_lines(result: dict) -> list[str]:
+    """The first lines the ``improve`` and ``pipeline`` commands print: effects added, then each effect
+    that was not identifiable from the recordings and why (``result``: their summary dict)."""
+    lines = [f"effects added: {', '.join(result['effects_added']) or 'none'}"]
+    lines += [f"{effect}: not identifiable from these recordings: {what}"
+              for effect, what in result["not_identifiable"].items()]
+    return lines
