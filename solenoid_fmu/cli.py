@@ -1,6 +1,6 @@
 """Command line: ``solenoid-fmu <command> ...``.
 
-Each data-flow module owns its subcommands through a function ``add_cli(subparsers)`` that
+Each subpackage's ``cli`` module owns its subcommands through a function ``add_cli(subparsers)`` that
 registers an argparse parser and sets ``func`` (called with the parsed namespace; returns the
 exit code). This module only collects them, prints errors without a traceback and sets the exit
 code: 0 success, 1 a checked error (bad file, non-convergence), 2 a usage error.
@@ -15,16 +15,18 @@ import sys
 from . import __version__
 from .errors import SolenoidError
 
-#: Modules that contribute subcommands, in the order of the data flow.
+#: Where each group of subcommands is registered (``module:function``, the function takes the
+#: subparsers), in the order of the data flow, which is the order of ``--help``.
 COMMAND_MODULES = (
-    "field.cli",
-    "maps.cli",
-    "measure.cli",
-    "rig.cli",
-    "identification.cli",
-    "fmu.cli",
-    "loop.cli",
-    "pipeline",
+    "field.cli:add_cli",
+    "maps.cli:add_cli",
+    "measure.cli:add_cli",
+    "rig.cli:add_cli",
+    "identification.cli:add_cli",
+    "maps.cli:add_eddy_cli",
+    "fmu.cli:add_cli",
+    "loop.cli:add_cli",
+    "pipeline:add_cli",
 )
 
 EPILOG = """examples:
@@ -45,16 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"solenoid-fmu {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(f"solenoid_fmu.{name}")
-        except ModuleNotFoundError as exc:  # a module not written yet contributes nothing
-            if exc.name != f"solenoid_fmu.{name}":
-                raise
-            continue
-        add = getattr(module, "add_cli", None)
-        if add is not None:
-            add(sub)
+    for entry in COMMAND_MODULES:
+        module, function = entry.split(":")
+        getattr(importlib.import_module(f"solenoid_fmu.{module}"), function)(sub)
     return parser
 
 

@@ -77,9 +77,8 @@ def _positive_float(text: str) -> float:
 
 
 def add_cli(subparsers) -> None:
-    """Register ``solenoid-fmu maps`` and ``solenoid-fmu eddy``."""
+    """Register ``solenoid-fmu maps`` (``eddy`` comes later in the help: :func:`add_eddy_cli`)."""
     _add_maps_cli(subparsers)
-    _add_eddy_cli(subparsers)
 
 
 def _add_maps_cli(subparsers) -> None:
@@ -200,7 +199,7 @@ def _maps_cli(args) -> int:
     return 0
 
 
-def _add_eddy_cli(sub) -> None:
+def add_eddy_cli(sub) -> None:
     """Register ``solenoid-fmu eddy``."""
     p = sub.add_parser("eddy", help="fit the eddy-current parameter G_eddy from eddy recordings (paper fig. 14)")
     p.add_argument("recordings", nargs="+", help="eddy recordings (CSV, format v1)")
