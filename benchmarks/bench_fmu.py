@@ -106,7 +106,7 @@ def main(argv: list[str]) -> int:
 
         tab = M.load_tables(maps_dir)
         x_m = 0.5 * (tab.x_min_m + tab.x_max_m)
-        U = 0.6 * (tab.resistance_ohm or 10.0) * (tab.i_fem_max_A if tab.i_fem_max_A < 1e9 else 1.0)
+        U = 0.6 * (tab.resistance_ohm_20C or 10.0) * (tab.i_fem_max_A if tab.i_fem_max_A < 1e9 else 1.0)
         fm, vr_m, unzip_m = _load(model_fmu, {"U_V": U, "x_m": x_m})
         fe, vr_e, unzip_e = _load(empty_fmu, {"u": U, "x": x_m})
         cyc_m = ([vr_m["U_V"], vr_m["x_m"]], [U, x_m], [vr_m["i_out_A"], vr_m["F_N"], vr_m["psi_Wb"]])

@@ -106,7 +106,7 @@ def main(argv: list[str]) -> int:
         # -- both FMUs through fmpy --------------------------------------------------------------
         tab = M.load_tables(maps_dir)
         x_m = 0.5 * (tab.x_min_m + tab.x_max_m)
-        U = 0.6 * (tab.resistance_ohm or 10.0) * (tab.i_fem_max_A if tab.i_fem_max_A < 1e9 else 1.0)
+        U = 0.6 * (tab.resistance_ohm_20C or 10.0) * (tab.i_fem_max_A if tab.i_fem_max_A < 1e9 else 1.0)
         fc, vr_c, unzip_c = _load(c_fmu, {"U_V": U, "x_m": x_m})
         fp, vr_p, unzip_p = _load(py_fmu, {"U_V": U, "x_m": x_m})
         cyc_c = ([vr_c["U_V"], vr_c["x_m"]], [U, x_m], [vr_c["i_out_A"], vr_c["F_N"], vr_c["psi_Wb"]])

@@ -31,5 +31,5 @@ def run(path) -> dict:
 
 if __name__ == "__main__":
     r = run(sys.argv[1])
-    print(f"{r['kind']}: {r['n']} samples, R = {r['flux'].resistance_ohm:.4g} ohm "
+    print(f"{r['kind']}: {r['n']} samples, R = {r['flux'].R_ohm:.4g} ohm "
           f"({r['flux'].resistance_source}), Psi max = {np.max(r['flux'].psi_Wb) * 1e3:.4f} mWb")

@@ -110,7 +110,7 @@ def test_protocol_draws_cover_the_variations_the_issue_lists():
     from solenoid_fmu.rig.protocols import random_protocol
 
     draws = [random_protocol(np.random.default_rng(s), x_range_m=(0.2e-3, 3.5e-3), max_current_A=2.0,
-                             resistance_ohm=12.0, max_samples=20000) for s in range(30)]
+                             R_ohm=12.0, max_samples=20000) for s in range(30)]
     excs = [e for d in draws for e in d]
     energized = [any(e.preroll_s > 0 for e in d if e.kind == "force_stroke") for d in draws]
     assert 0 < sum(energized) < len(draws)  # some benches energize before the carriage moves, some not

@@ -490,7 +490,7 @@ def max_rel_error(res, psi_fn=psi_true_Wb, peak_A=1.5):
 
 def test_flux_recovers_psi_of_i_within_half_percent(flux_rec):
     res = flux_linkage(flux_rec)
-    assert res.resistance_source == "header" and res.resistance_ohm == 12.05
+    assert res.resistance_source == "header" and res.R_ohm == 12.05
     assert res.commutation_i_A[0] == 0.0 and res.commutation_i_A[-1] == pytest.approx(1.5, abs=3e-3)
     assert res.commutation_i_A.size == 101
     assert max_rel_error(res) < 5e-3
@@ -532,7 +532,7 @@ def test_resistance_from_closure_when_header_has_none():
     rec = synthetic(t, i, psi_true_Wb(i), header_R=False, R_ohm=11.3)
     res = flux_linkage(rec)
     assert res.resistance_source == "estimated" and res.resistance_method == "closure"
-    assert res.resistance_ohm == pytest.approx(11.3, rel=1e-2)
+    assert res.R_ohm == pytest.approx(11.3, rel=1e-2)
     assert max_rel_error(res) < 5e-3
 
 
@@ -548,10 +548,10 @@ def test_resistance_from_plateau_within_one_percent():
     rec = synthetic(t, i, lagged, kind="ramp", R_ohm=13.1, header_R=False, force=True)
     res = flux_linkage(rec)
     assert res.resistance_method == "plateau" and res.resistance_source == "estimated"
-    assert res.resistance_ohm == pytest.approx(13.1, rel=1e-2)
+    assert res.R_ohm == pytest.approx(13.1, rel=1e-2)
     assert res.psi_at_peak_Wb == pytest.approx(psi_true_Wb(1.5), rel=5e-3)
-    given = flux_linkage(rec, resistance_ohm=13.0)
-    assert given.resistance_source == "given" and given.resistance_ohm == 13.0
+    given = flux_linkage(rec, R_ohm=13.0)
+    assert given.resistance_source == "given" and given.R_ohm == 13.0
 
 
 def test_branch_split_two_peaks():
@@ -598,7 +598,7 @@ def test_flux_refuses_what_it_cannot_do():
     with pytest.raises(RecordingError, match="no coil resistance"):
         flux_linkage(rec)
     with pytest.raises(RecordingError, match="must be > 0"):
-        flux_linkage(rec, resistance_ohm=-1.0)
+        flux_linkage(rec, R_ohm=-1.0)
 
 
 def test_commutation_curve_merges_recordings_at_one_stroke():

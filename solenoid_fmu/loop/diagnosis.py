@@ -133,7 +133,7 @@ def _features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.
         # rise is int i^2 R dt / C_th. One column, so that its coefficient (alpha / C_th) is the
         # same in every recording: several thermal time constants would be collinear over a short
         # recording and their fitted mix would not carry over to the next (held-out) one.
-        p = case.current_A**2 * case.resistance_ohm
+        p = case.current_A**2 * case.R_ohm
         rise = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(t))])
         ohmic = case.current_A * rise  # i * dR: the voltage (or, negated, current) error
         if signal == "psi_Wb":  # eq. 4 with the header R integrates the ohmic error

@@ -182,7 +182,7 @@ def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
         r = c.residuals.get("psi_Wb")
         if r is None:
             continue
-        t, i, R = c.time_s, c.current_A, c.resistance_ohm
+        t, i, R = c.time_s, c.current_A, c.R_ohm
         dt = np.diff(t)
         energy = np.concatenate([[0.0], np.cumsum(dt * i[1:] ** 2)])  # int i^2 dt
         phi = alpha * R * R * np.concatenate([[0.0], np.cumsum(dt * i[1:] * energy[1:])])

@@ -36,7 +36,7 @@ class ResidualCase:
         Coil current (measured).
     position_m : ndarray, shape (n,)
         Armature gap per sample.
-    resistance_ohm : float
+    R_ohm : float
         Coil resistance used for the i^2 R heating signature.
     residuals : dict of str -> ndarray
         Measured minus simulated, per signal name (``current_A``, ``voltage_V``, ``force_N``,
@@ -60,7 +60,7 @@ class ResidualCase:
     psi_Wb: np.ndarray
     current_A: np.ndarray
     position_m: np.ndarray
-    resistance_ohm: float
+    R_ohm: float
     residuals: dict
     measured: dict
     kind: str = ""
@@ -157,7 +157,7 @@ def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
     R = rec.coil_resistance_ohm
     if rec.voltage_V is not None and rec.kind != "voltage_step":
         fr = flux_of(rec)
-        R = fr.resistance_ohm
+        R = fr.R_ohm
     sim = simulate(rec, R)
     s = sim.recording
     psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
@@ -169,7 +169,7 @@ def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
         if rec.voltage_V is not None:
             if fr is None:
                 fr = flux_of(rec)
-                R = fr.resistance_ohm
+                R = fr.R_ohm
             t = np.asarray(rec.time_s, dtype=float)
             i = np.asarray(rec.current_A, dtype=float)
             inc = np.diff(t) * (np.asarray(s.voltage_V)[1:] - R * i[1:])

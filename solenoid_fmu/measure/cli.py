@@ -56,7 +56,7 @@ def _cmd_flux(args: argparse.Namespace) -> int:
           f"x = {np.mean(x) * 1e3:.3f} mm, {len(rec)} samples)")
     origin = {"header": "from the header", "given": "given", "plateau": "estimated from current plateaus",
               "closure": "estimated from flux closure"}[res.resistance_method]
-    print(f"resistance used: {res.resistance_ohm:.4f} ohm ({origin})")
+    print(f"resistance used: {res.R_ohm:.4f} ohm ({origin})")
     print(f"offset removed: {res.offset_V * 1e3:.3f} mV (drift {res.offset_drift_V_per_s * 1e3:.4f} mV/s)")
     print(f"peak current: {res.peak_current_A:.4f} A")
     print(f"Psi at peak: {res.psi_at_peak_Wb * 1e3:.4f} mWb")

@@ -36,7 +36,7 @@ class FluxResult:
         The recording's time [s] and current [A] (less the current offset, if one was removed).
     psi_Wb : numpy.ndarray, shape (n,)
         Flux linkage per sample [Wb], zero at the first sample.
-    resistance_ohm : float
+    R_ohm : float
         Coil resistance used [ohm].
     resistance_source : str
         ``"header"`` (coil_resistance_ohm), ``"given"`` (argument) or ``"estimated"``.
@@ -84,7 +84,7 @@ class FluxResult:
     time_s: np.ndarray
     current_A: np.ndarray
     psi_Wb: np.ndarray
-    resistance_ohm: float
+    R_ohm: float
     resistance_source: str
     resistance_method: str
     offset_V: float
@@ -107,7 +107,7 @@ class FluxResult:
         def num(v):
             return None if v is None or not math.isfinite(v) else float(v)
         return {
-            "resistance_ohm": num(self.resistance_ohm),
+            "resistance_ohm": num(self.R_ohm),
             "resistance_source": self.resistance_source,
             "resistance_method": self.resistance_method,
             "offset_V": num(self.offset_V),
@@ -214,14 +214,14 @@ def _plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np
     return mask
 
 
-def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_points: int = 101) -> FluxResult:
+def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101) -> FluxResult:
     """Flux linkage Psi(t) from voltage and current, and Psi(i) of triangular excitations.
 
     Parameters
     ----------
     rec : Recording
         A recording with a ``voltage_V`` column (any kind; ``flux`` and ``eddy`` have triangles).
-    resistance_ohm : float, optional
+    R_ohm : float, optional
         Coil resistance [ohm]; overrides the header.
     n_points : int
         Points of the current grid of the commutation curve (0 to the highest peak).
@@ -278,10 +278,10 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
     if head is None and tail is None:
         notes.append("no zero-current rest phase at the start or end: no voltage offset removed")
 
-    if resistance_ohm is not None:
-        if not (math.isfinite(resistance_ohm) and resistance_ohm > 0):
-            raise RecordingError(rec._where(), [f"resistance must be > 0 ohm, got {resistance_ohm!r}"])
-        R, method = float(resistance_ohm), "given"
+    if R_ohm is not None:
+        if not (math.isfinite(R_ohm) and R_ohm > 0):
+            raise RecordingError(rec._where(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
+        R, method = float(R_ohm), "given"
     elif rec.coil_resistance_ohm is not None:
         R, method = rec.coil_resistance_ohm, "header"
     else:
@@ -363,7 +363,7 @@ def flux_linkage(rec: Recording, resistance_ohm: float | None = None, *, n_point
         p = int(np.argmax(i_s))
         psi_peak, peak_A = float(psi[p]), float(i_s[p])
         notes.append("no current peak found: no branches, commutation curve or hysteresis width")
-    return FluxResult(time_s=t, current_A=i, psi_Wb=psi, resistance_ohm=float(R),
+    return FluxResult(time_s=t, current_A=i, psi_Wb=psi, R_ohm=float(R),
                       resistance_source=method if method in ("header", "given") else "estimated",
                       resistance_method=method,
                       offset_V=offset_mean, offset_drift_V_per_s=float(b),
@@ -404,7 +404,7 @@ class CommutationCurve:
 
 
 def commutation_curve(recordings: list[Recording], n_points: int = 101,
-                      resistance_ohm: float | None = None) -> CommutationCurve:
+                      R_ohm: float | None = None) -> CommutationCurve:
     """Merge ``flux`` recordings at one stroke (different peaks) into one measured Psi(i) curve.
 
     Parameters
@@ -413,7 +413,7 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
         ``flux`` recordings of one solenoid at one working gap (within 1 um).
     n_points : int
         Points of the current grid from 0 to the highest peak.
-    resistance_ohm : float, optional
+    R_ohm : float, optional
         Coil resistance [ohm] for every recording (default: each one's header, else estimated).
 
     Returns
@@ -452,7 +452,7 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
                         + ", ".join(f"{x * 1e3:.4f} mm" for x in positions))
     if problems:
         raise RecordingError("commutation_curve", problems)
-    results = [flux_linkage(rec, resistance_ohm, n_points=n_points) for rec in recordings]
+    results = [flux_linkage(rec, R_ohm, n_points=n_points) for rec in recordings]
     for rec, res in zip(recordings, results, strict=True):
         if not res.starts_at_rest:
             problems.append(f"{rec._where()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "

@@ -51,7 +51,7 @@ def plot_flux(result: FluxResult, path, title: str | None = None) -> Path:
             wanted.setdefault(lab.split(" (")[0], h)
         handles, labels = list(wanted.values()), list(wanted)
     ax.legend(handles, labels, fontsize="small")
-    ax.set_title(title or f"R = {result.resistance_ohm:.4g} ohm ({result.resistance_method})")
+    ax.set_title(title or f"R = {result.R_ohm:.4g} ohm ({result.resistance_method})")
     fig.savefig(path, dpi=120)
     return path
 

@@ -523,7 +523,7 @@ class MapTables:
         }
 
     @property
-    def resistance_ohm(self) -> float | None:
+    def resistance_ohm_20C(self) -> float | None:
         """Coil resistance at 20 degC [ohm] from ``maps.json``, or None."""
         v = (self.meta.get("coil") or {}).get("resistance_ohm_20C")
         return None if v is None else float(v)
@@ -808,7 +808,7 @@ class SolenoidModel:
                 raise ModelInputError(f"unknown parameter {key!r}; known: {', '.join(DEFAULT_PARAMS)}")
             if key == "R_ohm":
                 if value is None:
-                    value = self.tables.resistance_ohm
+                    value = self.tables.resistance_ohm_20C
                     if value is None:
                         raise ModelInputError("R_ohm not given and maps.json has no coil.resistance_ohm_20C")
                 v = _finite("R_ohm", value)

@@ -199,7 +199,7 @@ def _force_strokes(rng, n: int, x_lo: float, x_hi: float, i_max: float, max_samp
     return out
 
 
-def random_protocol(rng: np.random.Generator, *, x_range_m: tuple, max_current_A: float, resistance_ohm: float,
+def random_protocol(rng: np.random.Generator, *, x_range_m: tuple, max_current_A: float, R_ohm: float,
                     max_samples: int = 20000) -> list[Excitation]:
     """One randomized campaign protocol (see the module docstring), in a random order.
 
@@ -211,7 +211,7 @@ def random_protocol(rng: np.random.Generator, *, x_range_m: tuple, max_current_A
         Armature gaps the maps cover [m]; positions are drawn inside with 10 % margins.
     max_current_A : float
         The coil's maximum current [A]; peaks and holding currents are drawn up to it.
-    resistance_ohm : float
+    R_ohm : float
         Coil resistance [ohm] (sets the voltage-step amplitude).
     max_samples : int
         Upper limit of samples per recording (bounds the test time).
@@ -248,7 +248,7 @@ def random_protocol(rng: np.random.Generator, *, x_range_m: tuple, max_current_A
                                (float(positions(1)[0]),), notes=f"ramp to {peak:.3g} A",
                                **_channels(rng, True, True, False)))
     if rng.random() < 0.7:
-        volts = float(rng.uniform(0.4, 1.0) * resistance_ohm * i_max)
+        volts = float(rng.uniform(0.4, 1.0) * R_ohm * i_max)
         r0 = float(rng.uniform(0.02, 0.2))
         t1 = r0 + float(rng.uniform(0.15, 0.5))
         end = t1 + float(rng.uniform(0.1, 0.3))
@@ -300,7 +300,7 @@ def random_campaign(tables: MapTables, output_dir, effects: str | Effects = "", 
     i_max = float(coil.get("max_current_A") or 2.0)
     R = float(coil.get("resistance_ohm_20C") or 10.0)
     x = tables.tables()["x_m"]
-    excs = random_protocol(rng, x_range_m=(float(x[0]), float(x[-1])), max_current_A=i_max, resistance_ohm=R,
+    excs = random_protocol(rng, x_range_m=(float(x[0]), float(x[-1])), max_current_A=i_max, R_ohm=R,
                            max_samples=max_samples)
     daq = effects.daq or DataAcquisition()
     f_max = float(np.max(np.abs(tables.tables()["force_N"])))

@@ -100,7 +100,7 @@ class TruthModel:
         self.hysteresis_half_width_A = None if self.preisach is None else (
             hy.half_width_A if hy.half_width_A is not None else 0.03 * self.max_current_A)
 
-    def resistance_ohm(self, T_C: float) -> float:
+    def R_ohm_at(self, T_C: float) -> float:
         """Coil resistance [ohm] at ``T_C`` [degC]: ``R20 (1 + alpha (T - 20))``."""
         return self.resistance_ohm_20C * (1.0 + self.alpha_per_K * (T_C - 20.0))
 
@@ -166,7 +166,7 @@ class TruthModel:
         f_fric = 0.0
         out = {k: np.empty(ns) for k in ("U", "i", "psi", "F", "ih", "ie", "T")}
         eye = np.eye(2 + nk)
-        R_start = self.resistance_ohm(T)
+        R_start = self.R_ohm_at(T)
         T0 = T
         dt = 1.0 / exc.sample_rate_Hz
         n_sub = max(1, math.ceil(dt / self.h_sub_max_s - 1e-9))
@@ -225,7 +225,7 @@ class TruthModel:
             out["ie"][k] = float(np.sum(y[2:]))
             out["T"][k] = T
 
-        R = self.resistance_ohm(T)
+        R = self.R_ohm_at(T)
         # The amplifier is digital: its reference (and the carriage position) is held over each
         # sub-step at the value of the sub-step's midpoint (precomputed, vectorized). A step in
         # the reference then acts exactly at its time when that is a sub-step boundary.
@@ -245,7 +245,7 @@ class TruthModel:
             i_int = 0.0  # integral of i over the sample interval [A s]
             for m in range(n_sub):
                 cell = tab.x_cell(float(x_sub[k - 1, m])) if moving else fixed_cell
-                R = self.resistance_ohm(T)
+                R = self.R_ohm_at(T)
                 f1, J, _, i_a = rhs(ref_sub[k - 1, m], y, cell, R)
                 if m:
                     ri_int += 0.5 * hs * R * (i_prev + i_a)
@@ -261,7 +261,7 @@ class TruthModel:
                 if heating is not None:
                     P = i_a * i_a * R
                     T += hs * (P - (T - ambient) / heating.R_th_K_per_W) / heating.C_th_J_per_K
-            R = self.resistance_ohm(T)
+            R = self.R_ohm_at(T)
             _, _, _, i = rhs(ref_sub[k - 1, n_sub - 1], y, tab.x_cell(float(x_samp[k])), R)
             ri_int += 0.5 * hs * R * (i_prev + i)
             i_int += 0.5 * hs * (i_prev + i)
