@@ -57,6 +57,51 @@ def test_libcosim_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tm
     _check_like_fmpy(_example("ex_libcosim").run(maps_dir, tmp_path))
 
 
+_FMIL_LOG = """
+import sys
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimSlave import CosimLocalSlave
+
+log_output_level(CosimLogLevel.TRACE)  # FMI Library's messages go to stderr through libcosim's log
+execution = CosimExecution.from_step_size(100_000)
+execution.add_local_slave(CosimLocalSlave(sys.argv[1], "solenoid"))
+execution.simulate_until(1_000_000)
+"""
+
+
+def _fmil_complaints(fmu, cwd) -> list[str]:
+    """FMI Library's warning and error lines when libcosim loads and runs ``fmu`` (a subprocess)."""
+    run = subprocess.run([sys.executable, "-c", _FMIL_LOG, str(fmu)], capture_output=True, text=True, cwd=cwd,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    log = (run.stdout + run.stderr).splitlines()  # libcosim's log goes to stdout
+    assert any("FMI Library" in ln for ln in log), "no FMI Library log captured"
+    return [ln for ln in log if "FMI Library" in ln and re.search(r"\[(warning|error)\]", ln)]
+
+
+@pytest.mark.fmu
+def test_fmi_library_log_has_no_warning_for_either_fmu(maps_dir, tmp_path):
+    """Issue 14: FMI Library (inside libcosim) logs no warning or error for either backend's FMU;
+    a copy with a foreign attribute in its modelDescription shows the check can see one."""
+    import zipfile
+
+    pytest.importorskip("libcosimpy", reason="libcosimpy (libcosim, OSP) is not installed")
+    from solenoid_fmu.fmu import build_fmu
+
+    fmus = [build_fmu(maps_dir, tmp_path / f"{b}.fmu", backend=b) for b in ("c", "python")]
+    for fmu in fmus:
+        assert _fmil_complaints(fmu, tmp_path) == [], fmu.name
+    bad = tmp_path / "foreign-attribute.fmu"
+    with zipfile.ZipFile(fmus[0]) as zi, zipfile.ZipFile(bad, "w") as zo:
+        for item in zi.infolist():
+            data = zi.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b"<ScalarVariable ", b'<ScalarVariable foo="1" ', 1)
+            zo.writestr(item, data)
+    assert any("foo" in line for line in _fmil_complaints(bad, tmp_path))
+
+
 def test_ecos_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_path):
     ex_ecos = _example("ex_ecos")
     try:

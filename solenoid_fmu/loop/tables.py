@@ -7,6 +7,7 @@ equations are in :meth:`solenoid_fmu.realtime.model.SolenoidModel._step_fx`.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tempfile
 import zipfile
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SolenoidError
-from ..fileio import atomic_write_bytes, atomic_write_text
+from ..maps import load_maps, save_maps
 from ..realtime import MapTables, ModelError, load_tables
 
 #: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
@@ -66,10 +67,10 @@ def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None
 
 
 def write_maps_dir(tables: MapTables, fmu_path, dest_dir) -> Path:
-    """Write the improved maps directory (the FMU's maps.npz, maps.json with the effects)."""
-    dest_dir = Path(dest_dir)
-    dest_dir.mkdir(parents=True, exist_ok=True)
-    with zipfile.ZipFile(fmu_path) as zf:
-        atomic_write_bytes(dest_dir / "maps.npz", zf.read("resources/maps.npz"))
-    atomic_write_text(dest_dir / "maps.json", json.dumps(tables.meta, indent=1, sort_keys=True) + "\n")
-    return dest_dir
+    """Write the improved maps directory: the FMU's maps with ``tables``' maps.json meta (the effects),
+    through the one maps writer :func:`solenoid_fmu.maps.save_maps`."""
+    with zipfile.ZipFile(fmu_path) as zf, tempfile.TemporaryDirectory(prefix="solenoid_improve_") as tmp:
+        for name in ("maps.npz", "maps.json"):
+            Path(tmp, name).write_bytes(zf.read(f"resources/{name}"))
+        maps = load_maps(tmp)
+    return save_maps(dataclasses.replace(maps, metadata=tables.meta), dest_dir)
