@@ -102,7 +102,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     if drive not in ("voltage", "current"):
         raise FmuInputError(f"drive must be 'auto', 'voltage' or 'current', got {drive!r}")
     if drive == "voltage" and rec.voltage_V is None:
-        raise FmuInputError(f"{rec._where()}: no voltage_V column to drive the model with; "
+        raise FmuInputError(f"{rec.label()}: no voltage_V column to drive the model with; "
                             "use --drive current")
     t, x, u, u_step = _drive_inputs(rec, drive)
     if R_ohm is None:
@@ -168,7 +168,7 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
             fmu.terminate()
         except FMICallException as exc:
             detail = "; ".join(messages[-5:]) or str(exc)
-            raise FmuInputError(f"{fmu_path} refused the recording {rec._where()}: {detail}") from None
+            raise FmuInputError(f"{fmu_path} refused the recording {rec.label()}: {detail}") from None
         finally:
             fmu.freeInstance()
     finally:
@@ -243,7 +243,7 @@ def simulate_model(tables: MapTables, recording, *, drive: str = "auto", R_ohm: 
             o = model.outputs()
             out[k + 1] = [o[k2] for k2 in names + fx]
     except ModelError as exc:
-        raise FmuInputError(f"model refused the recording {rec._where()}: {exc}") from None
+        raise FmuInputError(f"model refused the recording {rec.label()}: {exc}") from None
     return _simulated(rec, drive, u, out, ["U_out_V", "i_out_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V"] + fx,
                       "solenoid_fmu.model (in process)", [])
 

@@ -18,10 +18,10 @@ def absolute_flux(recs) -> tuple[list, list[str]]:
     for rec in recs:
         fr = flux_linkage(rec)
         if not fr.starts_at_rest:
-            reasons.append(f"{rec._where()}: starts energized ({fr.current_A[0]:.4g} A), its flux has an unknown "
+            reasons.append(f"{rec.label()}: starts energized ({fr.current_A[0]:.4g} A), its flux has an unknown "
                            "integration constant")
         elif not fr.offset_measured:
-            reasons.append(f"{rec._where()}: no zero-current rest, the voltage offset of eq. 4 is unknown")
+            reasons.append(f"{rec.label()}: no zero-current rest, the voltage offset of eq. 4 is unknown")
         else:
             keep.append(rec)
     return keep, reasons
@@ -70,7 +70,7 @@ def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
     moving = np.abs(v) > 0.2 * np.percentile(np.abs(v[on]), 90) if on.any() else np.zeros_like(on)
     sel = on & moving
     if np.count_nonzero(sel) < 10:
-        raise RecordingError(rec._where(), ["force_stroke recording: no moving samples with the current on"])
+        raise RecordingError(rec.label(), ["force_stroke recording: no moving samples with the current on"])
     edges = np.arange(x[sel].min(), x[sel].max() + bin_m, bin_m)
     idx = np.digitize(x, edges) - 1
     xc, fc = [], []
@@ -81,7 +81,7 @@ def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
             xc.append(0.5 * (edges[b] + edges[b + 1]))
             fc.append(0.5 * (np.mean(F[up]) + np.mean(F[down])))
     if len(xc) < 2:
-        raise RecordingError(rec._where(), ["force_stroke recording: fewer than two positions passed in both "
+        raise RecordingError(rec.label(), ["force_stroke recording: fewer than two positions passed in both "
                                             "directions (a one-way stroke): friction cannot be averaged out"])
     return {"x_m": np.array(xc), "force_N": np.array(fc), "i_A": float(np.median(i[on]))}
 

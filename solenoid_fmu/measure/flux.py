@@ -257,9 +257,9 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
       averaged over the peaks reaching each level. Only positive current peaks are analysed.
     """
     if rec.voltage_V is None:
-        raise RecordingError(rec._where(), ["no voltage_V column: the flux linkage needs the coil voltage"])
+        raise RecordingError(rec.label(), ["no voltage_V column: the flux linkage needs the coil voltage"])
     if n_points < 3:
-        raise RecordingError(rec._where(), [f"n_points must be >= 3, got {n_points}"])
+        raise RecordingError(rec.label(), [f"n_points must be >= 3, got {n_points}"])
     t = rec.time_s
     u = rec.voltage_V
     i = rec.current_A
@@ -271,7 +271,7 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     sigma_i = _noise_std(i)
     i_max = float(np.max(np.abs(i_s)))
     if i_max <= 0:
-        raise RecordingError(rec._where(), ["the current is zero throughout: no flux to compute"])
+        raise RecordingError(rec.label(), ["the current is zero throughout: no flux to compute"])
     thr = max(5.0 * sigma_i, 2e-3 * i_max)
     min_rest = max(10, int(round(10e-3 / dt)))
     head, tail = _rest_runs(i_s, thr, min_rest)
@@ -280,7 +280,7 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
 
     if R_ohm is not None:
         if not (math.isfinite(R_ohm) and R_ohm > 0):
-            raise RecordingError(rec._where(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
+            raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
         R, method = float(R_ohm), "given"
     elif rec.coil_resistance_ohm is not None:
         R, method = rec.coil_resistance_ohm, "header"
@@ -320,7 +320,7 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
                 method = "closure"
                 notes.append("resistance from flux closure (assumes Psi returns to its start value)")
         if method is None or not (math.isfinite(R_est) and R_est > 0):
-            raise RecordingError(rec._where(), [
+            raise RecordingError(rec.label(), [
                 "no coil resistance: the header has no coil_resistance_ohm, the current has no plateau "
                 "to estimate it from, and the excitation does not return to its start "
                 "(give --resistance-ohm or add '# coil_resistance_ohm: ...')"])
@@ -437,11 +437,11 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     positions = []
     for rec in recordings:
         if rec.kind != "flux":
-            problems.append(f"{rec._where()}: kind {rec.kind!r}, commutation curves need 'flux' recordings")
+            problems.append(f"{rec.label()}: kind {rec.kind!r}, commutation curves need 'flux' recordings")
             continue
         x = rec.positions_m()
         if float(np.ptp(x)) > 1e-6:
-            problems.append(f"{rec._where()}: the stroke moves by {np.ptp(x) * 1e3:.4f} mm "
+            problems.append(f"{rec.label()}: the stroke moves by {np.ptp(x) * 1e3:.4f} mm "
                             "during the recording")
         positions.append(float(np.median(x)))
     names = {rec.solenoid for rec in recordings}
@@ -455,10 +455,10 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     results = [flux_linkage(rec, R_ohm, n_points=n_points) for rec in recordings]
     for rec, res in zip(recordings, results, strict=True):
         if not res.starts_at_rest:
-            problems.append(f"{rec._where()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "
+            problems.append(f"{rec.label()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "
                             "up to the integration constant Psi(0); a flux recording must start at zero current")
         elif not res.offset_measured:
-            problems.append(f"{rec._where()}: no zero-current rest at the start or end: the voltage offset of "
+            problems.append(f"{rec.label()}: no zero-current rest at the start or end: the voltage offset of "
                             "eq. 4 cannot be measured (add a rest of >= 10 ms)")
     if problems:
         raise RecordingError("commutation_curve", problems)

@@ -217,11 +217,12 @@ class Recording:
             return self.position_m
         x_m = self.header_position_m
         if x_m is None:
-            raise RecordingError(self._where(),
+            raise RecordingError(self.label(),
                                  ["no position: neither header 'position_mm' nor a position_mm column"])
         return np.full(self.time_s.shape, x_m)
 
-    def _where(self) -> str:
+    def label(self) -> str:
+        """How messages name this recording: its file, else its kind and solenoid."""
         return str(self.path) if self.path is not None else f"{self.kind} recording of {self.solenoid}"
 
 
