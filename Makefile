@@ -20,7 +20,7 @@ lint: setup
 test: setup lint
 	$(BIN)/python -m pytest -n 2 -q
 
-# Everything but the tests marked slow (over ~20 s each): a quick check while working (~2 min).
+# Everything but the tests marked slow (over ~20 s each): a quick check while working (~1.5 min on 2 cores).
 test-fast: setup lint
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
