@@ -78,6 +78,18 @@ def _block(fmu, n: int, t0: float, h: float, cycle=None) -> float:
     return (time.perf_counter() - start) / n
 
 
+def maps_for_bench(argv: list[str], tmp: Path) -> Path:
+    """The maps a benchmark runs on: ``argv[1]``, else the shipped PS45 map, else synthetic maps in ``tmp``."""
+    if len(argv) > 1:
+        return Path(argv[1])
+    if (ROOT / "maps" / "ps45-literature" / "maps.npz").exists():
+        return ROOT / "maps" / "ps45-literature"
+    sys.path.insert(0, str(ROOT / "tests"))
+    import mapsfixture
+
+    return mapsfixture.write_maps(tmp / "synthetic")
+
+
 def main(argv: list[str]) -> int:
     from solenoid_fmu.fmu import build_fmu
     from solenoid_fmu.realtime import model as M
@@ -86,15 +98,7 @@ def main(argv: list[str]) -> int:
     n_block, n_rep = 2000, 15
     with tempfile.TemporaryDirectory(prefix="bench_fmu_") as tmp:
         tmp = Path(tmp)
-        if len(argv) > 1:
-            maps_dir = Path(argv[1])
-        elif (ROOT / "maps" / "ps45-literature" / "maps.npz").exists():
-            maps_dir = ROOT / "maps" / "ps45-literature"
-        else:
-            sys.path.insert(0, str(ROOT / "tests"))
-            import mapsfixture
-
-            maps_dir = mapsfixture.write_maps(tmp / "synthetic")
+        maps_dir = maps_for_bench(argv, tmp)
         print(f"maps: {maps_dir}")
         model_fmu = build_fmu(maps_dir, tmp / "solenoid.fmu")
         from pythonfmu import FmuBuilder

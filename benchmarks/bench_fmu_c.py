@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_effects import EFFECTS  # noqa: E402  (the same effect parameters as bench_effects.py)
-from bench_fmu import _block, _load  # noqa: E402  (sibling benchmark script)
+from bench_fmu import _block, _load, maps_for_bench  # noqa: E402  (sibling benchmark script)
 
 
 def _host_ns(host, fmu, tmp, n_host, runs, *extra):
@@ -66,15 +66,7 @@ def main(argv: list[str]) -> int:
     n_block, n_rep, n_host = 2000, 15, 1_000_000
     with tempfile.TemporaryDirectory(prefix="bench_fmu_c_") as tmp:
         tmp = Path(tmp)
-        if len(argv) > 1:
-            maps_dir = Path(argv[1])
-        elif (ROOT / "maps" / "ps45-literature" / "maps.npz").exists():
-            maps_dir = ROOT / "maps" / "ps45-literature"
-        else:
-            sys.path.insert(0, str(ROOT / "tests"))
-            import mapsfixture
-
-            maps_dir = mapsfixture.write_maps(tmp / "synthetic")
+        maps_dir = maps_for_bench(argv, tmp)
         print(f"maps: {maps_dir}")
         c_fmu = build_fmu(maps_dir, tmp / "native.fmu", backend="c")
         py_fmu = build_fmu(maps_dir, tmp / "python.fmu", backend="python")

@@ -38,6 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "examples"))
 
 import ex_ecos  # noqa: E402  (the example's loader: libtbb.so.12 of the tbb wheel before ecospy)
+from bench_fmu import maps_for_bench  # noqa: E402  (sibling benchmark script)
 
 from solenoid_fmu.fmu import build_fmu  # noqa: E402
 
@@ -158,15 +159,7 @@ def main(argv: list[str]) -> int:
         return 0
     with tempfile.TemporaryDirectory(prefix="bench_importers_") as tmp:
         tmp = Path(tmp)
-        if len(argv) > 1:
-            maps_dir = Path(argv[1])
-        elif (ROOT / "maps" / "ps45-literature" / "maps.npz").exists():
-            maps_dir = ROOT / "maps" / "ps45-literature"
-        else:
-            sys.path.insert(0, str(ROOT / "tests"))
-            import mapsfixture
-
-            maps_dir = mapsfixture.write_maps(tmp / "synthetic")
+        maps_dir = maps_for_bench(argv, tmp)
         print(f"maps: {maps_dir}")
         print(f"run: {N_STEPS * H_S * 1e3:g} ms in {H_S * 1e6:g} us steps ({N_STEPS} steps), voltage mode, "
               f"minimum over {REPEATS} runs")
