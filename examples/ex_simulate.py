@@ -18,10 +18,14 @@ import solenoid_fmu as sf
 
 
 def run(maps_dir="maps/ps45-literature", out_dir="build/ex_simulate", U_V: float = 12.0,
-        duration_s: float = 0.5, backend: str = "c") -> dict:
-    """Simulated current [A] of a ``U_V`` step held for ``duration_s`` [s]; R [ohm] from the maps."""
+        duration_s: float = 0.5, backend: str = "c", R_ohm: float | None = None) -> dict:
+    """Simulated current [A] of a ``U_V`` step held for ``duration_s`` [s]; the coil resistance
+    ``R_ohm`` [ohm] defaults to the maps' ``coil.resistance_ohm_20C``."""
     maps = sf.load_maps(maps_dir)
-    R = float(maps.metadata["coil"]["resistance_ohm_20C"])
+    R = R_ohm if R_ohm is not None else (maps.metadata.get("coil") or {}).get("resistance_ohm_20C")
+    if R is None:
+        raise SystemExit(f"{maps_dir}: maps.json has no coil.resistance_ohm_20C; give R_ohm")
+    R = float(R)
     x = float(np.mean(maps.x_m))
     t = np.arange(0.0, duration_s, 1e-4)
     u = np.where(t > 0.01, U_V, 0.0)

@@ -249,7 +249,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         # Correct them with the fitted heating model and identify again.
         say("== coil heating was " + ("added" if heat else "fitted, B(H) error left") +
             ": identify B(H) again from heating-corrected flux")
-        heating = tables_from_fmu(res["improved_fmu"])[0].meta["effects"]["heating"] if heat else tried_heat
+        heating = tables_from_fmu(res["improved_fmu"]).meta["effects"]["heating"] if heat else tried_heat
         corr_dir = out / "heating-corrected"
         corr_dir.mkdir(parents=True, exist_ok=True)
         ident_recs = [heating_corrected(r, heating) if r.kind in ("flux", "eddy") else r for r in recs]

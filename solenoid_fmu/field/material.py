@@ -359,10 +359,3 @@ def linear_material(mu_r: float = 1.0) -> BHCurve:
     curve = BHCurve(B, nu, H, H, B, name=f"linear mu_r={mu_r:g}")
     return curve
 
-
-def bh_sha256(curve: BHCurve) -> str:
-    """A hash of the curve's content (for curves built in memory)."""
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(curve.B_T).tobytes())
-    h.update(np.ascontiguousarray(curve.nu_d).tobytes())
-    return h.hexdigest()

@@ -272,7 +272,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     if not recs:
         raise ImproveError("improve needs at least one recording")
-    tables, _ = tables_from_fmu(fmu_path)
+    tables = tables_from_fmu(fmu_path)
     flux_of = FluxCache()
     improved, steps, diagnoses, _, _, missing = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
                                                                threshold=threshold, progress=say, flux_of=flux_of)

@@ -27,8 +27,8 @@ class ImproveError(SolenoidError):
     """The improvement loop cannot run (no recordings, an FMU without maps, ...)."""
 
 
-def tables_from_fmu(fmu_path) -> tuple[MapTables, dict]:
-    """The maps an FMU carries (resources/maps.npz + maps.json) and the raw maps.json dict."""
+def tables_from_fmu(fmu_path) -> MapTables:
+    """The maps an FMU carries (resources/maps.npz + maps.json, the latter as ``.meta``)."""
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
         raise ImproveError(f"{fmu_path}: FMU file not found")
@@ -37,13 +37,12 @@ def tables_from_fmu(fmu_path) -> tuple[MapTables, dict]:
             for name in ("maps.npz", "maps.json"):
                 Path(tmp, name).write_bytes(zf.read(f"resources/{name}"))
             tab = load_tables(tmp)
-            meta = json.loads(Path(tmp, "maps.json").read_text(encoding="utf-8"))
     except (KeyError, zipfile.BadZipFile, OSError) as exc:
         raise ImproveError(f"{fmu_path}: not a solenoid-fmu FMU with maps in resources/ ({exc})") from None
     except ModelError as exc:  # load_tables: the maps are not readable or not valid (ModelMapsError)
         raise ImproveError(f"{fmu_path}: {exc}") from None
     tab.where = str(fmu_path)
-    return tab, meta
+    return tab
 
 
 def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None,
