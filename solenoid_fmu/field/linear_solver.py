@@ -6,7 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-__all__ = ["SPDSolver", "LINEAR_SOLVER"]
+__all__ = ["SPDSolver", "LINEAR_SOLVER", "BACKENDS"]
 
 
 class SPDSolver:
@@ -16,9 +16,17 @@ class SPDSolver:
     once per pattern and each Newton step does only the numeric Cholesky factorization and the
     solve (~0.05 s for 17k unknowns). Without it, SuperLU in symmetric mode (diagonal pivoting,
     minimum-degree ordering of A^T + A), several times slower.
+
+    ``backend`` ("MKL PARDISO" or "SuperLU"; default ``LINEAR_SOLVER``) picks one explicitly: the two
+    round differently, so running a solve through both shows whether a result depends on the rounding path.
     """
 
-    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int, backend: str | None = None):
+        backend = LINEAR_SOLVER if backend is None else backend
+        if backend not in BACKENDS:
+            raise ValueError(f"linear solver {backend!r} is not available here: use one of {', '.join(BACKENDS)}"
+                             + ("" if _pardiso else " ('MKL PARDISO' needs the package pypardiso, x86_64)"))
+        self.backend = backend
         self.n = n
         rows = np.repeat(np.arange(n), np.diff(indptr))
         self.upper = indices >= rows
@@ -26,7 +34,7 @@ class SPDSolver:
         self.u_indptr = np.concatenate([[0], np.cumsum(cnt)]).astype(np.int32)
         self.u_indices = indices[self.upper].astype(np.int32)
         self._ps = None
-        if _pardiso is not None:
+        if backend == "MKL PARDISO":
             self._ps = _pardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
             self._analysed = False
 
@@ -54,3 +62,5 @@ except ImportError:  # pragma: no cover - depends on the platform
 
 #: The direct solver of the Newton systems on this machine: "MKL PARDISO" or "SuperLU".
 LINEAR_SOLVER = "MKL PARDISO" if _pardiso is not None else "SuperLU"
+#: The backends ``SPDSolver`` can use on this machine.
+BACKENDS = ("MKL PARDISO", "SuperLU") if _pardiso is not None else ("SuperLU",)
