@@ -37,9 +37,10 @@ def ps45():
 
 
 def test_stall_below_the_stall_tolerance_is_accepted_with_a_note(ps45, monkeypatch, caplog):
-    """An unreachable tolerance makes Newton stall at rounding level: accepted, logged, same result."""
+    """An unreachable target (below the rounding floor) makes Newton stall: accepted, logged, same result."""
     _, _, solver, ref, _ = ps45
     monkeypatch.setattr(fem, "NEWTON_RTOL", 1e-30)
+    monkeypatch.setattr(fem, "NEWTON_FLOOR_FACTOR", 0.0)
     with caplog.at_level(logging.INFO, logger="solenoid_fmu.field.fem"):
         sol = solver.solve(I_A, X_M)
     assert "accepted as converged" in sol.note
@@ -53,6 +54,7 @@ def test_stall_above_the_stall_tolerance_is_not_accepted(ps45, monkeypatch):
     """The stall rule has a limit: with a stall tolerance nothing reaches, the point fails (naming x and i)."""
     _, _, solver, _, _ = ps45
     monkeypatch.setattr(fem, "NEWTON_RTOL", 1e-30)
+    monkeypatch.setattr(fem, "NEWTON_FLOOR_FACTOR", 0.0)
     monkeypatch.setattr(fem, "NEWTON_STALL_RTOL", 1e-30)
     monkeypatch.setattr(fem, "NEWTON_MAXIT", 12)
     monkeypatch.setattr(fem, "RETRY_LOAD_STEPS", (2,))

@@ -45,15 +45,25 @@ from .linear_solver import SPDSolver
 from .material import NU_0, BHCurve
 from .mesh import MorphMesh, build_mesh
 
-#: Newton settings (tolerances relative to the source norm / the solution norm).
+#: Newton settings (tolerances relative to the source norm / the solution norm). Converged means
+#: |r| <= max(NEWTON_RTOL |f|, NEWTON_FLOOR_FACTOR eps | |K_s| |u| + |f| |) (2-norms over the free dofs): the
+#: residual r = K_s(u) u - f (K_s the secant stiffness it is assembled from) cannot be computed more exactly than
+#: eps (|K_s| |u| + |f|) per row, its rounding floor; the residual stagnates at ~0.15 x that floor (PS45, PARDISO
+#: and SuperLU), so a target of 10 x the floor is reached whatever the CPU's rounding path.
 NEWTON_RTOL = 1e-9
+NEWTON_FLOOR_FACTOR = 10.0
 NEWTON_MAXIT = 40
+#: The line search's Armijo test on the energy allows an increase up to this many eps x (sum |r w dA| + |f| . |u|),
+#: the rounding level of the computed energy (measured < 1 x): closer to the minimum the predicted decrease is
+#: below it and comparing energies is noise (an approximate Armijo condition, Hager & Zhang 2005). The solution is
+#: then within ~sqrt(64 eps) = 1e-7 in the energy norm, where the full Newton step converges quadratically.
+NEWTON_ENERGY_ROUNDING = 64.0
 EGGSHELL_M = 0.4e-3  # thickness of the air layer over which the Maxwell-stress weight falls to 0
 #: A Newton stall is accepted as converged (with a logged note) when the relative residual has stopped
-#: decreasing below this: the update has shrunk to rounding level (``NEWTON_STALL_UPDATE`` of the solution
-#: norm), or the iteration limit is reached and the best iterate's residual is below it. At a residual of 7e-6
-#: Psi and F differ from the fully converged ones by 3e-8 and 4e-8 relative (PS45, i = 0.632 A, x = 2.787 mm),
-#: far below the maps' 0.05 % interpolation target.
+#: decreasing below this: the residual after an update shrunk to ``NEWTON_STALL_UPDATE`` of the solution norm
+#: still misses the target, or the iteration limit is reached and the best iterate's residual is below it. At a
+#: residual of 7e-6 Psi and F differ from the fully converged ones by 3e-8 and 4e-8 relative (PS45, i = 0.632 A,
+#: x = 2.787 mm), far below the maps' 0.05 % interpolation target.
 NEWTON_STALL_RTOL = 1e-5
 NEWTON_STALL_UPDATE = 1e-12
 #: Load steps of the retry after a failed Newton solve: the current is ramped in this many equal steps
@@ -80,6 +90,8 @@ class Solution:
     coenergy_J: float
     newton_iterations: int
     residual_history: list = field(default_factory=list)
+    #: eps | |K_s| |u| + |f| | / |f| at the last iterate: the relative residual's rounding floor (see NEWTON_RTOL)
+    residual_floor: float = 0.0
     note: str = ""  # how Newton got there when not by the plain tolerance (a stall accepted, a retry)
 
     @property
@@ -171,6 +183,10 @@ class Solver:
         The steel's B(H) curve (all ``steel`` regions).
     mesh_size : float
         Mesh-size knob of :func:`solenoid_fmu.field.mesh.build_mesh` (1 = default accuracy).
+    mesh : MorphMesh, optional
+        A mesh built before (``mesh_size`` is then only recorded).
+    linear_backend : str, optional
+        "MKL PARDISO" or "SuperLU" for the Newton systems (default: the faster one installed).
 
     Notes
     -----
@@ -178,7 +194,8 @@ class Solver:
     position), so a sweep over currents at one x costs one Newton solve per current.
     """
 
-    def __init__(self, geometry: Geometry, material: BHCurve, mesh_size: float = 1.0, mesh: MorphMesh = None):
+    def __init__(self, geometry: Geometry, material: BHCurve, mesh_size: float = 1.0, mesh: MorphMesh = None,
+                 linear_backend: str | None = None):
         from skfem import Basis, ElementTriP2, MeshTri  # loaded on first solve: importing the field stays cheaper
 
         self.geometry = geometry
@@ -224,12 +241,12 @@ class Solver:
         self.dirichlet = basis0.get_dofs(facets).all()
         # the moving (armature) elements and the eggshell weight for the Maxwell-stress force
         self.moving_elements = np.isin(mm.region, [k for k, r in enumerate(geometry.regions) if r.moves])
-        self._pattern()
+        self._pattern(linear_backend)
         self._config: _Config | None = None
         self.solves = 0
 
     # -- sparsity pattern and scatter --------------------------------------------------------
-    def _pattern(self):
+    def _pattern(self, linear_backend: str | None):
         n = self.ndofs
         rows = np.repeat(self.dofs[:, None, :], 6, axis=1)  # (6, 6, nel): row = dof k
         cols = np.repeat(self.dofs[None, :, :], 6, axis=0)
@@ -246,7 +263,7 @@ class Solver:
         self._dir_mask = isdir[r] | isdir[c]
         self._dir_diag = np.flatnonzero(isdir[r] & (r == c))
         self.dirichlet_mask = isdir
-        self.linear_solver = SPDSolver(self._indptr, self._indices, n)
+        self.linear_solver = SPDSolver(self._indptr, self._indices, n, linear_backend)
 
     def _assemble_source(self, cfg: _Config, density: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(density)
@@ -281,10 +298,13 @@ class Solver:
         ue = u[self.dofs]  # (6, nel)
         return np.einsum("ke,kdeq->deq", ue, cfg.G)  # (2, nel, nq)
 
-    def _energy(self, cfg: _Config, u: np.ndarray, f: np.ndarray) -> float:
+    def _energy(self, cfg: _Config, u: np.ndarray, f: np.ndarray, with_scale: bool = False):
+        """The energy functional / 2 pi; with ``with_scale``, also sum |r w dA| + |f| . |u| (its rounding scale)."""
         g = self.grad(cfg, u)
         b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r**2
-        return float(np.sum(cfg.dx * cfg.r * self._energy_density(b2)) - f @ u)
+        w = cfg.dx * cfg.r * self._energy_density(b2)
+        e = float(np.sum(w) - f @ u)
+        return (e, float(np.sum(np.abs(w)) + np.abs(f) @ np.abs(u))) if with_scale else e
 
     # -- Newton --------------------------------------------------------------------------------
     def solve(self, i_A: float, x_m: float, u0: np.ndarray | None = None, i0_A: float | None = None) -> Solution:
@@ -304,6 +324,43 @@ class Solver:
             except _NewtonFailure as exc:
                 first = exc
             return self._retry(i_A, x_m, u0, i0_A, first)
+
+    def sweep(self, x_m: float, i_A) -> dict:
+        """Psi and F at one gap for a list of currents, warm-starting along the list.
+
+        Parameters
+        ----------
+        x_m : float
+            Gap [m].
+        i_A : array-like, shape (n,)
+            Currents [A] (any order; sorted ascending gives the best warm starts).
+
+        Returns
+        -------
+        dict of ndarray, shape (n,)
+            ``psi_Wb``, ``force_N`` (co-energy), ``force_stress_N``, ``coenergy_J``, ``newton_iterations``,
+            ``newton_recovered`` (1 where Newton stalled and was accepted, or was recovered by the retry of
+            :meth:`solve`, which steps the load from the previous current's solution).
+
+        Raises
+        ------
+        SolverError
+            A point that the retry cannot recover either, naming x [mm] and i [A].
+        """
+        i_A = np.asarray(i_A, dtype=float)
+        keys = ("psi_Wb", "force_N", "force_stress_N", "coenergy_J", "newton_iterations", "newton_recovered")
+        out = {k: np.zeros(len(i_A)) for k in keys}
+        u, i_prev = None, None
+        for k, i in enumerate(i_A):
+            sol = self.solve(float(i), x_m, u0=u, i0_A=i_prev)
+            u, i_prev = (sol.u, float(i)) if i != 0 else (None, None)
+            out["newton_recovered"][k] = 1.0 if sol.note else 0.0
+            out["psi_Wb"][k] = sol.psi_Wb
+            out["force_N"][k] = sol.force_coenergy_N
+            out["force_stress_N"][k] = sol.force_stress_N
+            out["coenergy_J"][k] = sol.coenergy_J
+            out["newton_iterations"][k] = sol.newton_iterations
+        return out
 
     def _retry(self, i_A: float, x_m: float, u0, i0_A, first: _NewtonFailure) -> Solution:
         """Load stepping in current after the failed solve ``first`` (see :meth:`solve`)."""
@@ -358,47 +415,53 @@ class Solver:
         u = np.zeros(self.ndofs) if u0 is None else np.array(u0, dtype=float)
         u[self.dirichlet] = 0.0
         fnorm = np.linalg.norm(f[~self.dirichlet_mask])
+        free = ~self.dirichlet_mask
         history = []
         it = 0
         note = ""
+        floor = 0.0
         self.solves += 1
         if fnorm == 0.0:
             u[:] = 0.0
         else:
-            energy = self._energy(cfg, u, f)
-            best = (np.inf, u)
+            energy, scale = self._energy(cfg, u, f, with_scale=True)
+            best, tiny_update = (np.inf, u, 0.0), False
             for it in range(1, NEWTON_MAXIT + 1):
-                K, res = self.tangent(cfg, u, f)
-                rnorm = np.linalg.norm(res[~self.dirichlet_mask]) / fnorm
+                K, res, floor_rows = self._newton_system(cfg, u, f)
+                rnorm = np.linalg.norm(res[free]) / fnorm
+                floor = np.finfo(float).eps * np.linalg.norm(floor_rows[free]) / fnorm
                 history.append(rnorm)
-                if rnorm < NEWTON_RTOL:
+                if rnorm <= max(NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor):
                     it -= 1
                     break
+                if tiny_update and rnorm < NEWTON_STALL_RTOL:  # judged on the residual after the tiny update
+                    it -= 1
+                    note = self._stall_note(i_A, x_m, rnorm, floor,
+                                           f"after an update below {NEWTON_STALL_UPDATE:g} of the solution")
+                    break
                 if rnorm < best[0]:
-                    best = (rnorm, u)
+                    best = (rnorm, u, floor)
                 du = self.linear_solver.solve(K.data, K.indices, K.indptr, -res)
-                # Armijo backtracking on the convex energy
+                # Armijo backtracking on the convex energy, blind to its rounding (NEWTON_ENERGY_ROUNDING)
                 slope = res @ du
                 step = 1.0
                 for _ in range(30):
                     trial = u + step * du
-                    e_trial = self._energy(cfg, trial, f)
-                    if e_trial <= energy + 1e-4 * step * slope or step < 1e-8:
+                    e_trial, s_trial = self._energy(cfg, trial, f, with_scale=True)
+                    rounding = NEWTON_ENERGY_ROUNDING * np.finfo(float).eps * max(scale, s_trial)
+                    if e_trial <= energy + 1e-4 * step * slope + rounding or step < 1e-8:
                         break
                     step *= 0.5
-                u, energy = trial, e_trial
-                if (step * np.linalg.norm(du) <= NEWTON_STALL_UPDATE * max(np.linalg.norm(u), 1e-30)
-                        and rnorm < NEWTON_STALL_RTOL):
-                    note = self._stall_note(i_A, x_m, rnorm, "the update is at rounding level")
-                    break
+                u, energy, scale = trial, e_trial, s_trial
+                tiny_update = step * np.linalg.norm(du) <= NEWTON_STALL_UPDATE * max(np.linalg.norm(u), 1e-30)
             else:
                 if best[0] >= NEWTON_STALL_RTOL:
                     raise _NewtonFailure(
                         f"Newton did not converge at i = {i_A:g} A, x = {x_m * 1e3:g} mm after {NEWTON_MAXIT} "
                         f"iterations; relative residuals: {', '.join(f'{h:.2e}' for h in history)}"
                     )
-                u = best[1]
-                note = self._stall_note(i_A, x_m, best[0], f"best of {NEWTON_MAXIT} iterations")
+                _, u, floor = best
+                note = self._stall_note(i_A, x_m, best[0], floor, f"best of {NEWTON_MAXIT} iterations")
         psi = float(cfg.psi_weights @ u)
         w_co = -2 * np.pi * self._energy(cfg, u, f) if fnorm else 0.0
         dens = i_A * self.coil_density_per_A + self.fixed_density
@@ -407,19 +470,25 @@ class Solver:
             F_st = self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
         else:
             F_st = 0.0
-        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, note)
+        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, floor, note)
 
     @staticmethod
-    def _stall_note(i_A: float, x_m: float, rnorm: float, why: str) -> str:
+    def _stall_note(i_A: float, x_m: float, rnorm: float, floor: float, why: str) -> str:
         """Log and return the note of a Newton stall accepted as converged (see ``NEWTON_STALL_RTOL``)."""
-        note = (f"Newton stopped at relative residual {rnorm:.2e} ({why}; target {NEWTON_RTOL:g}); accepted as "
-                f"converged: below the stall tolerance {NEWTON_STALL_RTOL:g}")
+        target = max(NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor)
+        note = (f"Newton stopped at relative residual {rnorm:.2e} ({why}; target {target:.2g}, rounding floor "
+                f"{floor:.2g}); accepted as converged: below the stall tolerance {NEWTON_STALL_RTOL:g}")
         log.info("FEM point i = %g A, x = %g mm: %s", i_A, x_m * 1e3, note)
         return note
 
     def tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
         """Newton system at ``u`` for the load vector ``f``: the tangent stiffness (CSR, symmetric
         positive definite, Dirichlet rows set to the identity) and the residual (0 on Dirichlet dofs)."""
+        return self._newton_system(cfg, u, f)[:2]
+
+    def _newton_system(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
+        """:meth:`tangent` and, per dof, |K_s| |u| + |f|: the residual's rounding floor / eps (K_s the secant
+        stiffness, whose product with u the residual's element sums add up)."""
         g = self.grad(cfg, u)  # (2, nel, nq)
         r2 = cfg.r**2
         b2 = (g[0] ** 2 + g[1] ** 2) / r2
@@ -428,15 +497,18 @@ class Solver:
         gG = np.einsum("deq,kdeq->keq", g, G)  # (6, nel, nq): g . grad phi_k
         a = cfg.w_over_r * nu
         c = cfg.w_over_r * 2 * dnu / r2
-        K = (cfg.GG * a).sum(axis=-1) + np.einsum("keq,leq->kle", gG, gG * c)
+        K_s = (cfg.GG * a).sum(axis=-1)  # (6, 6, nel) secant stiffness: res_loc = K_s u_e
+        K = K_s + np.einsum("keq,leq->kle", gG, gG * c)
         res_loc = np.einsum("keq,eq->ke", gG, a)
         res = np.bincount(self.dofs.ravel(), weights=res_loc.ravel(), minlength=self.ndofs) - f
+        floor_loc = np.einsum("kle,le->ke", np.abs(K_s), np.abs(u[self.dofs]))
+        floor_rows = np.bincount(self.dofs.ravel(), weights=floor_loc.ravel(), minlength=self.ndofs) + np.abs(f)
         data = np.bincount(self._scatter, weights=K.ravel(), minlength=self._nnz)
         data[self._dir_mask] = 0.0
         data[self._dir_diag] = 1.0
         res[self.dirichlet_mask] = 0.0
         A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.ndofs, self.ndofs))
-        return A, res
+        return A, res, floor_rows
 
     def _eggshell(self, cfg: _Config) -> np.ndarray:
         """Vertex weight g: 1 on the armature, 0 on all other bodies, falling across the air."""
@@ -497,44 +569,8 @@ def solve_point(geometry: Geometry, material: BHCurve, i_A: float, x_m: float, m
 
 
 def sweep_currents(geometry: Geometry, material: BHCurve, x_m: float, i_A, mesh_size: float = 1.0) -> dict:
-    """Psi and F at one gap for a list of currents, warm-starting along the list.
-
-    Parameters
-    ----------
-    geometry, material : the solenoid and its steel
-    x_m : float
-        Gap [m].
-    i_A : array-like, shape (n,)
-        Currents [A] (any order; sorted ascending gives the best warm starts).
-    mesh_size : float
-
-    Returns
-    -------
-    dict of ndarray, shape (n,)
-        ``psi_Wb``, ``force_N`` (co-energy), ``force_stress_N``, ``coenergy_J``, ``newton_iterations``,
-        ``newton_recovered`` (1 where Newton stalled and was accepted, or was recovered by the retry of
-        :meth:`Solver.solve`, which steps the load from the previous current's solution).
-
-    Raises
-    ------
-    SolverError
-        A point that the retry cannot recover either, naming x [mm] and i [A].
-    """
-    solver = get_solver(geometry, material, mesh_size)
-    i_A = np.asarray(i_A, dtype=float)
-    out = {k: np.zeros(len(i_A)) for k in ("psi_Wb", "force_N", "force_stress_N", "coenergy_J", "newton_iterations")}
-    out["newton_recovered"] = np.zeros(len(i_A))
-    u, i_prev = None, None
-    for k, i in enumerate(i_A):
-        sol = solver.solve(float(i), x_m, u0=u, i0_A=i_prev)
-        u, i_prev = (sol.u, float(i)) if i != 0 else (None, None)
-        out["newton_recovered"][k] = 1.0 if sol.note else 0.0
-        out["psi_Wb"][k] = sol.psi_Wb
-        out["force_N"][k] = sol.force_coenergy_N
-        out["force_stress_N"][k] = sol.force_stress_N
-        out["coenergy_J"][k] = sol.coenergy_J
-        out["newton_iterations"][k] = sol.newton_iterations
-    return out
+    """Psi and F at one gap for a list of currents with a cached solver: see :meth:`Solver.sweep`."""
+    return get_solver(geometry, material, mesh_size).sweep(x_m, i_A)
 
 
 __all__ = ["Solver", "Solution", "solve_point", "sweep_currents", "get_solver"]
