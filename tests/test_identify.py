@@ -155,7 +155,9 @@ def test_auglag_reference_reports_in_words_and_stays_feasible():
     assert res.status in NLOPT_CODES.values()
     assert res.fem_solves >= 6 * len(i)
     assert all(v <= 1e-6 for v in res.constraint_residuals.values())
-    assert res.mae_after <= res.extra["auglag_mae_at_start_parameters"] + 1e-12
+    # the best point may be the start, re-solved along another warm-start path: equal to the FEM's convergence
+    # (Psi within ~1e-8 relative), so the slack is 1e-7 of the peak flux (the units of the mae), not rounding level
+    assert res.mae_after <= res.extra["auglag_mae_at_start_parameters"] + 1e-7
 
 
 @pytest.mark.slow
