@@ -470,7 +470,7 @@ class Solver:
             F_st = self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
         else:
             F_st = 0.0
-        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, floor, note)
+        return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, residual_floor=floor, note=note)
 
     @staticmethod
     def _stall_note(i_A: float, x_m: float, rnorm: float, floor: float, why: str) -> str:
