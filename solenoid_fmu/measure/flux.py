@@ -23,6 +23,7 @@ from ..errors import RecordingError
 from .branches import FluxBranch, peak_curves, split_branches
 from .conditioning import condition
 from .format import Recording
+from .resistance import CampaignResistance, ResistanceTrack, campaign_resistance, resistance_track
 
 __all__ = ["FluxResult", "flux_linkage", "CommutationCurve", "commutation_curve"]
 
@@ -40,10 +41,11 @@ class FluxResult:
     R_ohm : float
         Coil resistance used [ohm].
     resistance_source : str
-        ``"header"`` (coil_resistance_ohm), ``"given"`` (argument) or ``"estimated"``.
+        ``"header"`` (coil_resistance_ohm), ``"given"`` (argument) or ``"estimated"`` (also the track).
     resistance_method : str
         How it was obtained: ``"header"``, ``"given"``, ``"plateau"`` (U/i where the current
-        holds still) or ``"closure"`` (Psi back to its start value); see :func:`flux_linkage`.
+        holds still), ``"closure"`` (Psi back to its start value) or ``"track"`` (R(t) of
+        :attr:`track`); see :func:`flux_linkage`.
     offset_V : float
         Mean voltage offset removed over the recording [V].
     offset_drift_V_per_s : float
@@ -80,6 +82,10 @@ class FluxResult:
         recording [Wb]: the standard error of the rest phases' mean voltage times the duration
         (infinite without a usable rest). Flux differences smaller than this, growing linearly
         with time, are not measured.
+    track : ResistanceTrack or None
+        The resistance track R(t) integrated with (``resistance="track"`` or a given track;
+        :mod:`solenoid_fmu.measure.resistance`), else None (one R throughout). With a track
+        ``R_ohm`` is R at the first sample.
     """
 
     time_s: np.ndarray
@@ -102,6 +108,7 @@ class FluxResult:
     starts_at_rest: bool = True
     offset_measured: bool = True
     offset_uncertainty_Wb: float = 0.0
+    track: ResistanceTrack | None = None
 
     def summary(self) -> dict:
         """The CLI's JSON object: numbers in SI, NaN as None."""
@@ -123,10 +130,26 @@ class FluxResult:
             "starts_at_rest": self.starts_at_rest,
             "offset_measured": self.offset_measured,
             "offset_uncertainty_Wb": num(self.offset_uncertainty_Wb),
+            **self._track_summary(num),
         }
 
+    def _track_summary(self, num) -> dict:
+        """The resistance track's keys (None without a track): R at start and end, kappa, sigmas, pinned."""
+        tr = self.track
+        keys = ("resistance_sigma_ohm", "resistance_end_ohm", "resistance_end_sigma_ohm", "kappa_per_J",
+                "kappa_sigma_per_J", "psi_at_peak_sigma_Wb")
+        if tr is None:
+            return {**dict.fromkeys(keys), "resistance_pinned": None, "resistance_constraints": [],
+                    "header_resistance_disagrees": None, "resistance_why_not_pinned": ""}
+        vals = (tr.R0_sigma_ohm, tr.R_end_ohm, tr.R_end_sigma_ohm, tr.kappa_per_J, tr.kappa_sigma_per_J,
+                tr.psi_peak_sigma_Wb)
+        return {**{k: num(v) for k, v in zip(keys, vals, strict=True)}, "resistance_pinned": tr.pinned,
+                "resistance_constraints": list(tr.constraints), "header_resistance_disagrees": tr.header_disagrees,
+                "resistance_why_not_pinned": tr.why_not_pinned}
 
-def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101) -> FluxResult:
+
+def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101,
+                 resistance: str | ResistanceTrack | None = None) -> FluxResult:
     """Flux linkage Psi(t) from voltage and current, and Psi(i) of triangular excitations.
 
     Parameters
@@ -137,6 +160,12 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
         Coil resistance [ohm]; overrides the header.
     n_points : int
         Points of the current grid of the commutation curve (0 to the highest peak).
+    resistance : {None, "track"} or ResistanceTrack
+        None (default): one R throughout (argument, header, else estimated; see Notes). ``"track"``:
+        integrate with R(t) estimated from this recording
+        (:func:`~solenoid_fmu.measure.resistance_track`, ``R_ohm`` or the header as its prior); a
+        :class:`~solenoid_fmu.measure.ResistanceTrack` (e.g. from
+        :func:`~solenoid_fmu.measure.campaign_resistance`): integrate with that one.
 
     Returns
     -------
@@ -179,6 +208,17 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     b, n_anchors, offset_se, offset = c.drift_V_per_s, c.n_anchors, c.offset_se_V, c.offset
     uc, ic, i_off = c.uc, c.ic, c.current_offset_A
 
+    track = None
+    if isinstance(resistance, ResistanceTrack):
+        track = resistance
+        if track.label != rec.label() or track.R_t_ohm.size != t.size:
+            raise RecordingError(rec.label(), [f"the resistance track is of {track.label} "
+                                               f"({track.R_t_ohm.size} samples), not of this recording"])
+    elif resistance == "track":
+        track = resistance_track(rec, R_ohm)
+    elif resistance is not None:
+        raise RecordingError(rec.label(), [f"resistance must be None, 'track' or a ResistanceTrack, "
+                                           f"got {resistance!r}"])
     if R_ohm is not None:
         if not (math.isfinite(R_ohm) and R_ohm > 0):
             raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
@@ -188,7 +228,7 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     else:
         R, method = None, None
 
-    if R is None:
+    if R is None and track is None:
         plateau = c.plateau_mask()
         closed = abs(float(i_s[-1] - i_s[0])) <= thr
         R_est = math.nan
@@ -210,7 +250,12 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
 
     from scipy.integrate import cumulative_trapezoid  # heavy: see the module docstring
 
-    psi = cumulative_trapezoid(uc - R * ic, t, initial=0.0)
+    if track is not None:
+        R, method = track.R0_ohm, "track"
+        notes += track.notes
+        if not track.pinned:
+            notes.append(f"resistance track not pinned: {track.why_not_pinned}")
+    psi = cumulative_trapezoid(uc - (R * ic if track is None else track.R_t_ohm * ic), t, initial=0.0)
     offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
     i, i_s = ic, i_s - i_off
 
@@ -254,7 +299,8 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
                       commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
                       hysteresis_mean_width_Wb=width_mean, notes=notes,
                       starts_at_rest=bool(abs(float(i_s[0])) <= thr),
-                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]))
+                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]),
+                      track=track)
 
 
 @dataclass
@@ -275,6 +321,8 @@ class CommutationCurve:
         The peaks of the merged excitations [A].
     results : list of FluxResult
         The per-recording flux results.
+    resistance : CampaignResistance or None
+        The resistance tracks the flux was integrated with (None: one R per recording).
     """
 
     i_A: np.ndarray
@@ -283,10 +331,12 @@ class CommutationCurve:
     position_m: float
     peak_currents_A: list[float]
     results: list[FluxResult]
+    resistance: CampaignResistance | None = None
 
 
 def commutation_curve(recordings: list[Recording], n_points: int = 101,
-                      R_ohm: float | None = None) -> CommutationCurve:
+                      R_ohm: float | None = None, *,
+                      resistance: str | CampaignResistance | None = None) -> CommutationCurve:
     """Merge ``flux`` recordings at one stroke (different peaks) into one measured Psi(i) curve.
 
     Parameters
@@ -297,6 +347,11 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
         Points of the current grid from 0 to the highest peak.
     R_ohm : float, optional
         Coil resistance [ohm] for every recording (default: each one's header, else estimated).
+    resistance : {None, "track"} or CampaignResistance
+        None: one R per recording (as ``R_ohm``). ``"track"``: R(t) per recording with one heating
+        rate fitted jointly over these recordings (:func:`~solenoid_fmu.measure.campaign_resistance`);
+        a :class:`~solenoid_fmu.measure.CampaignResistance` (e.g. of the whole campaign, so that
+        ramps and voltage steps help pin kappa): its track of each recording.
 
     Returns
     -------
@@ -334,7 +389,21 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
                         + ", ".join(f"{x * 1e3:.4f} mm" for x in positions))
     if problems:
         raise RecordingError("commutation_curve", problems)
-    results = [flux_linkage(rec, R_ohm, n_points=n_points) for rec in recordings]
+    camp = None
+    if isinstance(resistance, CampaignResistance):
+        camp = resistance
+    elif resistance == "track":
+        camp = campaign_resistance(recordings)
+    elif resistance is not None:
+        raise RecordingError("commutation_curve", [f"resistance must be None, 'track' or a CampaignResistance, "
+                                                   f"got {resistance!r}"])
+    if camp is not None:
+        missing = [rec.label() for rec in recordings if camp.track_for(rec) is None]
+        if missing:
+            why = {lab: camp.skipped.get(lab, "not in the campaign fit") for lab in missing}
+            raise RecordingError("commutation_curve", [f"{lab}: no resistance track ({w})" for lab, w in why.items()])
+    results = [flux_linkage(rec, R_ohm, n_points=n_points,
+                            resistance=None if camp is None else camp.track_for(rec)) for rec in recordings]
     for rec, res in zip(recordings, results, strict=True):
         if not res.starts_at_rest:
             problems.append(f"{rec.label()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "
@@ -355,5 +424,6 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     merged = np.nansum(stack[:, keep], axis=0) / count[keep]
     return CommutationCurve(i_A=grid[keep], psi_Wb=merged, n_sources=count[keep].astype(np.int64),
                             position_m=float(np.median(positions)),
-                            peak_currents_A=[br.peak_A for br in branches[::2]], results=results)
+                            peak_currents_A=[br.peak_A for br in branches[::2]], results=results,
+                            resistance=camp)
 
