@@ -32,7 +32,10 @@ least squares:
     the run, maybe at another temperature, on another rig), and ``kappa = 0 +-``
     :data:`KAPPA_PRIOR_PER_J` (``C_th`` >= 10 J/K) unless a campaign value is given.
 
-The covariance is scaled by the residual noise (``chi^2 / dof`` of the data equations when above 1).
+The covariance is scaled by the residual noise (``chi^2 / dof`` of the data equations when above 1),
+and the model's own error is added: cooling (Newton, neglected) bends R(t) by about
+``duration / (2 tau)`` of the heating, with ``tau`` >= :data:`TAU_MODEL_S`, so ``c`` is uncertain by at
+least that fraction (moving ``R0`` the way the data leave free).
 A track is ``pinned`` when the uncertainty it leaves in Psi at the highest peak is below
 :data:`PINNED_REL` (0.3 %) of Psi there. :func:`campaign_resistance` fits one ``kappa`` for all
 recordings of a campaign at a fixed stroke (per-recording ``R0``), so that multi-cycle and plateau
@@ -63,6 +66,8 @@ KAPPA_PRIOR_PER_J = 0.00393 / 10.0
 PINNED_REL = 0.003
 #: Closure residuals this many times what the noise explains are a data problem.
 CLOSURE_FACTOR = 5.0
+#: Shortest thermal time constant the adiabatic model is meant for [s] (sets its model error).
+TAU_MODEL_S = 60.0
 _PLATEAU_PARTS = 4  # equations per plateau
 _MIN_BRANCH = 50  # samples a branch needs for closure (coarser ones interpolate the loop too roughly)
 _PEAK_TOL = 0.003  # peaks within 0.3 % (or 4 sigma of the current noise) count as the same height
@@ -297,10 +302,20 @@ def _scale(chi2: float, dof: int) -> float:
     return math.sqrt(chi2 / dof) if dof > 0 else math.nan
 
 
+def _model_error(cov: np.ndarray, c: float, duration_s: float) -> np.ndarray:
+    """``cov`` plus the adiabatic model's error: ``c`` uncertain by ``duration / (2 TAU_MODEL_S)`` (Newton
+    cooling, neglected, bends R(t) by about that fraction of the heating), moving R0 along the direction the
+    data leave free (the regression of R0 on c), so that what the data pin stays pinned."""
+    m2 = (abs(c) * duration_s / (2.0 * TAU_MODEL_S)) ** 2
+    v = np.array([cov[0, 1] / cov[1, 1] if cov[1, 1] > 0 else 0.0, 1.0])
+    return cov + m2 * np.outer(v, v)
+
+
 def _track(eq: _Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float, kappa_source: str,
            extra: list[str]) -> ResistanceTrack:
     """The track of one recording from its (R0, c) and their (scaled) covariance."""
     R0, c = float(theta[0]), float(theta[1])
+    cov = _model_error(cov, c, float(eq.cond.t[-1] - eq.cond.t[0]))
     E = eq.energy_J
     R_t = R0 + c * E
     gE = np.array([1.0, E[-1]])
@@ -521,7 +536,9 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
         tracks[eq.rec.label()] = _track(eq, np.array([theta[j], theta[m] * eq.R_ref]), cj,
                                         sc, "campaign", ["campaign kappa"])
     not_pinned = [f"{lab}: {tr.why_not_pinned}" for lab, tr in tracks.items() if not tr.pinned]
-    return CampaignResistance(kappa_per_J=float(theta[m]), kappa_sigma_per_J=float(math.sqrt(cov[m, m])),
+    durations = [float(f[0].cond.t[-1] - f[0].cond.t[0]) for f in fits]
+    kappa_sigma = math.hypot(math.sqrt(cov[m, m]), theta[m] * float(np.median(durations)) / (2.0 * TAU_MODEL_S))
+    return CampaignResistance(kappa_per_J=float(theta[m]), kappa_sigma_per_J=float(kappa_sigma),
                               tracks=tracks, skipped=skipped, not_pinned=not_pinned,
                               problems=closure_problems(list(tracks.values())))
 
