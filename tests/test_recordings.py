@@ -640,18 +640,25 @@ def test_cli_flux_json(tmp_path, capsys, flux_rec):
     for key in ("resistance_ohm", "resistance_source", "offset_V", "psi_at_peak_Wb", "peak_current_A",
                 "hysteresis_width_Wb"):
         assert key in out
-    assert out["resistance_ohm"] == 12.05 and out["resistance_source"] == "header"
+    # by default the R(t) track: R at the start within its uncertainty of the (true) header value
+    assert out["resistance_method"] == "track" and out["resistance_source"] == "estimated"
+    assert abs(out["resistance_ohm"] - 12.05) <= 3 * out["resistance_sigma_ohm"] + 1e-4
+    assert out["resistance_end_ohm"] is not None and out["kappa_per_J"] is not None
     assert out["offset_V"] == pytest.approx(5e-3, abs=2e-4)
     assert out["psi_at_peak_Wb"] == pytest.approx(psi_true_Wb(1.5), rel=5e-3)
     assert out["peak_current_A"] == pytest.approx(1.5, abs=3e-3)
     assert 0.0 <= out["hysteresis_width_Wb"] < 5e-3 * psi_true_Wb(1.5)
+    assert main(["flux", str(path), "--json", "--constant-resistance"]) == 0  # one R: the header's, as before
+    out = json.loads(capsys.readouterr().out)
+    assert out["resistance_ohm"] == 12.05 and out["resistance_source"] == "header"
+    assert out["resistance_end_ohm"] is None and out["resistance_pinned"] is None
 
 
 def test_cli_flux_text_and_plot(tmp_path, capsys):
     t, i = triangle_current([1.5])
     path = write_recording(tmp_path / "flux.csv", synthetic(t, i, psi_true_Wb(i), header_R=False))
     png = tmp_path / "flux.png"
-    assert main(["flux", str(path), "--plot", str(png)]) == 0
+    assert main(["flux", str(path), "--plot", str(png), "--constant-resistance"]) == 0
     out = capsys.readouterr().out
     assert "estimated from flux closure" in out
     r_line = next(line for line in out.splitlines() if line.startswith("resistance used:"))

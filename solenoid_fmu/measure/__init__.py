@@ -4,19 +4,31 @@ from .branches import FluxBranch, peak_curves
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
 from .reader import read_recording, validate_recording
+from .resistance import (
+    CampaignResistance,
+    ResistanceTrack,
+    campaign_resistance,
+    closure_problems,
+    resistance_track,
+)
 from .writer import write_recording
 
 __all__ = [
     "KINDS",
+    "CampaignResistance",
     "CommutationCurve",
     "FluxBranch",
     "FluxResult",
     "Recording",
+    "ResistanceTrack",
+    "campaign_resistance",
+    "closure_problems",
     "commutation_curve",
     "flux_linkage",
     "make_recording",
     "peak_curves",
     "read_recording",
+    "resistance_track",
     "validate_recording",
     "write_recording",
 ]

@@ -21,7 +21,9 @@ import numpy as np
 
 from ..errors import RecordingError
 from .branches import FluxBranch, peak_curves, split_branches
+from .conditioning import condition
 from .format import Recording
+from .resistance import CampaignResistance, ResistanceTrack, campaign_resistance, resistance_track
 
 __all__ = ["FluxResult", "flux_linkage", "CommutationCurve", "commutation_curve"]
 
@@ -39,10 +41,11 @@ class FluxResult:
     R_ohm : float
         Coil resistance used [ohm].
     resistance_source : str
-        ``"header"`` (coil_resistance_ohm), ``"given"`` (argument) or ``"estimated"``.
+        ``"header"`` (coil_resistance_ohm), ``"given"`` (argument) or ``"estimated"`` (also the track).
     resistance_method : str
         How it was obtained: ``"header"``, ``"given"``, ``"plateau"`` (U/i where the current
-        holds still) or ``"closure"`` (Psi back to its start value); see :func:`flux_linkage`.
+        holds still), ``"closure"`` (Psi back to its start value) or ``"track"`` (R(t) of
+        :attr:`track`); see :func:`flux_linkage`.
     offset_V : float
         Mean voltage offset removed over the recording [V].
     offset_drift_V_per_s : float
@@ -79,6 +82,10 @@ class FluxResult:
         recording [Wb]: the standard error of the rest phases' mean voltage times the duration
         (infinite without a usable rest). Flux differences smaller than this, growing linearly
         with time, are not measured.
+    track : ResistanceTrack or None
+        The resistance track R(t) integrated with (``resistance="track"`` or a given track;
+        :mod:`solenoid_fmu.measure.resistance`), else None (one R throughout). With a track
+        ``R_ohm`` is R at the first sample.
     """
 
     time_s: np.ndarray
@@ -101,6 +108,7 @@ class FluxResult:
     starts_at_rest: bool = True
     offset_measured: bool = True
     offset_uncertainty_Wb: float = 0.0
+    track: ResistanceTrack | None = None
 
     def summary(self) -> dict:
         """The CLI's JSON object: numbers in SI, NaN as None."""
@@ -122,99 +130,26 @@ class FluxResult:
             "starts_at_rest": self.starts_at_rest,
             "offset_measured": self.offset_measured,
             "offset_uncertainty_Wb": num(self.offset_uncertainty_Wb),
+            **self._track_summary(num),
         }
 
-
-def _noise_std(y: np.ndarray) -> float:
-    """Robust white-noise standard deviation of a signal (MAD of second differences)."""
-    if y.size < 5:
-        return 0.0
-    d2 = np.diff(y, 2)
-    mad = np.median(np.abs(d2 - np.median(d2)))
-    return float(1.4826 * mad / math.sqrt(6.0))
-
-
-def _smooth(y: np.ndarray, k: int) -> np.ndarray:
-    from scipy.ndimage import uniform_filter1d  # heavy: see the module docstring
-
-    return y if k <= 1 else uniform_filter1d(y, size=k, mode="nearest")
-
-
-def _rest_runs(i_s: np.ndarray, thr_A: float, min_len: int) -> tuple[slice | None, slice | None]:
-    """Zero-current rest phases at the start and end.
-
-    The start phase loses its last 5 % (the excitation begins); of the end phase only the second
-    half is kept, so that induced voltages still decaying after the excitation (eddy currents)
-    do not bias the offset.
-    """
-    active = np.abs(i_s) > thr_A
-    if not active.any():
-        return None, None
-    first = int(np.argmax(active))
-    last = int(active.size - 1 - np.argmax(active[::-1]))
-    head = tail = None
-    if first >= min_len:
-        head = slice(0, first - max(1, first // 20))
-    n_tail = active.size - 1 - last
-    if n_tail >= min_len:
-        tail = slice(last + 1 + max(1, n_tail // 2), active.size)
-    return head, tail
+    def _track_summary(self, num) -> dict:
+        """The resistance track's keys (None without a track): R at start and end, kappa, sigmas, pinned."""
+        tr = self.track
+        keys = ("resistance_sigma_ohm", "resistance_end_ohm", "resistance_end_sigma_ohm", "kappa_per_J",
+                "kappa_sigma_per_J", "psi_at_peak_sigma_Wb")
+        if tr is None:
+            return {**dict.fromkeys(keys), "resistance_pinned": None, "resistance_constraints": [],
+                    "header_resistance_disagrees": None, "resistance_why_not_pinned": ""}
+        vals = (tr.R0_sigma_ohm, tr.R_end_ohm, tr.R_end_sigma_ohm, tr.kappa_per_J, tr.kappa_sigma_per_J,
+                tr.psi_peak_sigma_Wb)
+        return {**{k: num(v) for k, v in zip(keys, vals, strict=True)}, "resistance_pinned": tr.pinned,
+                "resistance_constraints": list(tr.constraints), "header_resistance_disagrees": tr.header_disagrees,
+                "resistance_why_not_pinned": tr.why_not_pinned}
 
 
-def _stationary(u: np.ndarray, u_scale: float) -> bool:
-    """True when the two halves of a rest phase's voltage agree within 5 standard errors or within
-    0.1 % of the recording's largest voltage ``u_scale`` [V] (a slow offset drift of the DAQ).
-
-    A rest phase right after an excitation may still carry an induced voltage that decays (eddy
-    currents, a hysteresis creeping to remanence): such a phase does not give the offset.
-    """
-    n = u.size // 2
-    if n < 4:
-        return True
-    a, b = u[:n], u[-n:]
-    se = math.sqrt((float(np.var(a)) + float(np.var(b))) / n)
-    return abs(float(np.mean(a)) - float(np.mean(b))) <= max(5.0 * se, 1e-3 * u_scale, 1e-12)
-
-
-def _offset_model(t, u, head, tail):
-    """Voltage offset (a, b, t0, n, se): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V]
-    over the ``n`` (0-2) rest phases used; ``se`` [V] the larger standard error of those means.
-
-    U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
-    A rest phase whose voltage is still settling (:func:`_stationary`) is not used.
-    """
-    from scipy.stats import trim_mean  # heavy: see the module docstring
-
-    anchors = []
-    se = 0.0
-    for sl in (head, tail):
-        if sl is not None and sl.stop - sl.start > 0 and _stationary(u[sl], float(np.max(np.abs(u)))):
-            anchors.append((float(np.median(t[sl])), float(trim_mean(u[sl], 0.1))))
-            se = max(se, float(np.std(u[sl])) / math.sqrt(sl.stop - sl.start))
-    if not anchors:
-        return 0.0, 0.0, float(t[0]), 0, math.inf
-    if len(anchors) == 1:
-        return anchors[0][1], 0.0, anchors[0][0], 1, se
-    (t0, a0), (t1, a1) = anchors
-    return a0, (a1 - a0) / (t1 - t0), t0, 2, se
-
-
-def _plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
-    """Boolean mask of settled samples on non-zero current plateaus (second half of each run)."""
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d  # heavy: see the module docstring
-
-    band = max(10.0 * sigma_s, 1e-3 * i_max)
-    span = maximum_filter1d(i_s, min_len, mode="nearest") - minimum_filter1d(i_s, min_len, mode="nearest")
-    still = (span < band) & (np.abs(i_s) > 0.1 * i_max)
-    mask = np.zeros_like(still)
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], still.astype(np.int8), [0]))))
-    for start, stop in zip(edges[::2], edges[1::2], strict=True):
-        if stop - start >= min_len:
-            mask[(start + stop) // 2: stop] = True
-    return mask
-
-
-def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101) -> FluxResult:
+def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101,
+                 resistance: str | ResistanceTrack | None = None) -> FluxResult:
     """Flux linkage Psi(t) from voltage and current, and Psi(i) of triangular excitations.
 
     Parameters
@@ -225,6 +160,12 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
         Coil resistance [ohm]; overrides the header.
     n_points : int
         Points of the current grid of the commutation curve (0 to the highest peak).
+    resistance : {None, "track"} or ResistanceTrack
+        None (default): one R throughout (argument, header, else estimated; see Notes). ``"track"``:
+        integrate with R(t) estimated from this recording
+        (:func:`~solenoid_fmu.measure.resistance_track`, ``R_ohm`` or the header as its prior); a
+        :class:`~solenoid_fmu.measure.ResistanceTrack` (e.g. from
+        :func:`~solenoid_fmu.measure.campaign_resistance`): integrate with that one.
 
     Returns
     -------
@@ -260,24 +201,24 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
         raise RecordingError(rec.label(), ["no voltage_V column: the flux linkage needs the coil voltage"])
     if n_points < 3:
         raise RecordingError(rec.label(), [f"n_points must be >= 3, got {n_points}"])
-    t = rec.time_s
-    u = rec.voltage_V
-    i = rec.current_A
-    n = t.size
-    notes: list[str] = []
-    dt = float(np.median(np.diff(t)))
-    k_smooth = max(1, int(round(1e-3 / dt)))
-    i_s = _smooth(i, k_smooth)
-    sigma_i = _noise_std(i)
-    i_max = float(np.max(np.abs(i_s)))
-    if i_max <= 0:
-        raise RecordingError(rec.label(), ["the current is zero throughout: no flux to compute"])
-    thr = max(5.0 * sigma_i, 2e-3 * i_max)
-    min_rest = max(10, int(round(10e-3 / dt)))
-    head, tail = _rest_runs(i_s, thr, min_rest)
-    if head is None and tail is None:
-        notes.append("no zero-current rest phase at the start or end: no voltage offset removed")
+    c = condition(rec)
+    t, i, n = c.t, rec.current_A, c.t.size
+    notes = list(c.notes)
+    k_smooth, i_s, thr = c.k_smooth, c.i_s, c.thr
+    b, n_anchors, offset_se, offset = c.drift_V_per_s, c.n_anchors, c.offset_se_V, c.offset
+    uc, ic, i_off = c.uc, c.ic, c.current_offset_A
 
+    track = None
+    if isinstance(resistance, ResistanceTrack):
+        track = resistance
+        if track.label != rec.label() or track.R_t_ohm.size != t.size:
+            raise RecordingError(rec.label(), [f"the resistance track is of {track.label} "
+                                               f"({track.R_t_ohm.size} samples), not of this recording"])
+    elif resistance == "track":
+        track = resistance_track(rec, R_ohm)
+    elif resistance is not None:
+        raise RecordingError(rec.label(), [f"resistance must be None, 'track' or a ResistanceTrack, "
+                                           f"got {resistance!r}"])
     if R_ohm is not None:
         if not (math.isfinite(R_ohm) and R_ohm > 0):
             raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
@@ -287,27 +228,8 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     else:
         R, method = None, None
 
-    # voltage offset (with drift) from the rest phases; current-sensor offset only if significant
-    a, b, t0, n_anchors, offset_se = _offset_model(t, u, head, tail)
-    if n_anchors == 0 and (head is not None or tail is not None):
-        notes.append("the zero-current rest phases still carry a settling induced voltage: no voltage offset "
-                     "removed")
-    offset = a + b * (t - t0)
-    uc = u - offset
-    i_off = 0.0
-    rest = np.concatenate([np.arange(n)[sl] for sl in (head, tail) if sl is not None] or [np.empty(0, int)])
-    if rest.size >= 2:
-        mean_rest = float(np.mean(i[rest]))
-        stderr = max(float(np.std(i[rest])), 1e-9) / math.sqrt(rest.size)
-        if abs(mean_rest) > 5.0 * stderr:
-            i_off = mean_rest
-            notes.append(f"current-sensor offset of {i_off * 1e3:.3f} mA in the rest phases removed")
-    ic = i - i_off
-
-    if R is None:
-        k_plateau = max(5, 2 * k_smooth)
-        plateau = _plateaus(_smooth(ic, k_plateau), sigma_i / math.sqrt(k_plateau), i_max,
-                            max(20, int(round(50e-3 / dt))))
+    if R is None and track is None:
+        plateau = c.plateau_mask()
         closed = abs(float(i_s[-1] - i_s[0])) <= thr
         R_est = math.nan
         if plateau.any():
@@ -328,7 +250,12 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
 
     from scipy.integrate import cumulative_trapezoid  # heavy: see the module docstring
 
-    psi = cumulative_trapezoid(uc - R * ic, t, initial=0.0)
+    if track is not None:
+        R, method = track.R0_ohm, "track"
+        notes += track.notes
+        if not track.pinned:
+            notes.append(f"resistance track not pinned: {track.why_not_pinned}")
+    psi = cumulative_trapezoid(uc - (R * ic if track is None else track.R_t_ohm * ic), t, initial=0.0)
     offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
     i, i_s = ic, i_s - i_off
 
@@ -372,7 +299,8 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
                       commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
                       hysteresis_mean_width_Wb=width_mean, notes=notes,
                       starts_at_rest=bool(abs(float(i_s[0])) <= thr),
-                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]))
+                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]),
+                      track=track)
 
 
 @dataclass
@@ -393,6 +321,8 @@ class CommutationCurve:
         The peaks of the merged excitations [A].
     results : list of FluxResult
         The per-recording flux results.
+    resistance : CampaignResistance or None
+        The resistance tracks the flux was integrated with (None: one R per recording).
     """
 
     i_A: np.ndarray
@@ -401,10 +331,12 @@ class CommutationCurve:
     position_m: float
     peak_currents_A: list[float]
     results: list[FluxResult]
+    resistance: CampaignResistance | None = None
 
 
 def commutation_curve(recordings: list[Recording], n_points: int = 101,
-                      R_ohm: float | None = None) -> CommutationCurve:
+                      R_ohm: float | None = None, *,
+                      resistance: str | CampaignResistance | None = None) -> CommutationCurve:
     """Merge ``flux`` recordings at one stroke (different peaks) into one measured Psi(i) curve.
 
     Parameters
@@ -415,6 +347,11 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
         Points of the current grid from 0 to the highest peak.
     R_ohm : float, optional
         Coil resistance [ohm] for every recording (default: each one's header, else estimated).
+    resistance : {None, "track"} or CampaignResistance
+        None: one R per recording (as ``R_ohm``). ``"track"``: R(t) per recording with one heating
+        rate fitted jointly over these recordings (:func:`~solenoid_fmu.measure.campaign_resistance`);
+        a :class:`~solenoid_fmu.measure.CampaignResistance` (e.g. of the whole campaign, so that
+        ramps and voltage steps help pin kappa): its track of each recording.
 
     Returns
     -------
@@ -452,7 +389,21 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
                         + ", ".join(f"{x * 1e3:.4f} mm" for x in positions))
     if problems:
         raise RecordingError("commutation_curve", problems)
-    results = [flux_linkage(rec, R_ohm, n_points=n_points) for rec in recordings]
+    camp = None
+    if isinstance(resistance, CampaignResistance):
+        camp = resistance
+    elif resistance == "track":
+        camp = campaign_resistance(recordings)
+    elif resistance is not None:
+        raise RecordingError("commutation_curve", [f"resistance must be None, 'track' or a CampaignResistance, "
+                                                   f"got {resistance!r}"])
+    if camp is not None:
+        missing = [rec.label() for rec in recordings if camp.track_for(rec) is None]
+        if missing:
+            why = {lab: camp.skipped.get(lab, "not in the campaign fit") for lab in missing}
+            raise RecordingError("commutation_curve", [f"{lab}: no resistance track ({w})" for lab, w in why.items()])
+    results = [flux_linkage(rec, R_ohm, n_points=n_points,
+                            resistance=None if camp is None else camp.track_for(rec)) for rec in recordings]
     for rec, res in zip(recordings, results, strict=True):
         if not res.starts_at_rest:
             problems.append(f"{rec.label()}: starts energized ({res.current_A[0]:.4g} A): its flux is only known "
@@ -473,5 +424,6 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     merged = np.nansum(stack[:, keep], axis=0) / count[keep]
     return CommutationCurve(i_A=grid[keep], psi_Wb=merged, n_sources=count[keep].astype(np.int64),
                             position_m=float(np.median(positions)),
-                            peak_currents_A=[br.peak_A for br in branches[::2]], results=results)
+                            peak_currents_A=[br.peak_A for br in branches[::2]], results=results,
+                            resistance=camp)
 

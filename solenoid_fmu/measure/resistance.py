@@ -1,0 +1,567 @@
+r"""The coil resistance over time, estimated from a recording's own voltage and current.
+
+Paper eq. 4 integrates ``U - R i``: at 2 A a 0.1 % error of R (12 ohm) integrates to ~0.01 Wb
+per second, and the coil warms by several kelvin in a campaign. The header's
+``coil_resistance_ohm`` was measured before the run, so it cannot follow that; the recording can.
+
+Model (**adiabatic Joule heating**): within a recording (seconds; the coil's thermal time constant is
+minutes) ``R(t) = R0 (1 + kappa E(t))`` with ``E(t) = int_0^t R(t') i^2 dt'`` [J] the Joule energy since
+the first sample and ``kappa = alpha / C_th`` [1/J] (copper ``alpha`` = 0.00393 /K, ``C_th`` the
+heat capacity). Unknowns per recording: ``R0`` [ohm] (R at the first sample) and ``c = R0 kappa``
+[ohm/J]; the voltage offset comes first from the zero-current rests
+(:func:`~solenoid_fmu.measure.conditioning.condition`). With the offset known, the flux
+``Psi(t) = A(t) - R0 B0(t) - c B1(t)`` (``A = int U dt``, ``B0 = int i dt``, ``B1 = int E i dt``) is
+linear in ``(R0, c)``, and every piece of information is a linear equation, solved by weighted
+least squares:
+
+(a) current plateaus (settled second half of a hold, |i| > 10 % of the peak, >= 50 ms): Psi does not
+    change there, ``Psi(t_b) - Psi(t_a) = 0`` over each quarter of the settled part (R rises along a
+    long hold); noise ``sigma_u dt sqrt(N)`` with ``sigma_u`` the voltage noise and R times the
+    current noise;
+(b) cycle-to-cycle closure: of two consecutive cycles with the same peak (within 0.3 %) the descending
+    branches coincide as Psi(i), and so do the ascending ones from the second cycle on (the first
+    starts demagnetized; branches of >= 50 samples): the mean of ``Psi_k(i) - Psi_k+1(i)`` over 10-90 %
+    of the peak is 0; noise
+    the voltage noise integrated over the time between the two branches, the current noise seen
+    through the slope dPsi/di, and the slope times the difference of the two peaks (a loop from
+    a higher turning point lies higher);
+(c) the end rest of a single-cycle recording that starts and ends at rest: ``Psi_end - Psi_0`` is
+    the remanence, bounded by the loop: a weak equation ``= 0 +- (the hysteresis width seen with
+    the header R, at least 1 % of Psi at the peak)``;
+(d) priors: the header R as ``R0`` with a relative uncertainty :data:`HEADER_SIGMA_REL` (measured before
+    the run, maybe at another temperature, on another rig), and ``kappa = 0 +-``
+    :data:`KAPPA_PRIOR_PER_J` (``C_th`` >= 10 J/K) unless a campaign value is given.
+
+The covariance is scaled by the residual noise (``chi^2 / dof`` of the data equations when above 1),
+and the model's own error is added: cooling (Newton, neglected) bends R(t) by about
+``duration / (2 tau)`` of the heating, with ``tau`` >= :data:`TAU_MODEL_S`, so ``c`` is uncertain by at
+least that fraction (moving ``R0`` the way the data leave free).
+A track is ``pinned`` when the uncertainty it leaves in Psi at the highest peak is below
+:data:`PINNED_REL` (0.3 %) of Psi there. :func:`campaign_resistance` fits one ``kappa`` for all
+recordings of a campaign at a fixed stroke (per-recording ``R0``), so that multi-cycle and plateau
+recordings pin it for single-cycle ones. :func:`closure_problems` names recordings whose loops do
+not close from cycle to cycle even with the best track.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import RecordingError
+from .branches import branch_on_grid, split_branches
+from .conditioning import Conditioned, condition, noise_std
+from .format import Recording
+
+__all__ = ["HEADER_SIGMA_REL", "KAPPA_PRIOR_PER_J", "PINNED_REL", "CLOSURE_FACTOR", "ResistanceTrack",
+           "CampaignResistance", "resistance_track", "campaign_resistance", "closure_problems"]
+
+#: Relative 1-sigma uncertainty of the header's ``coil_resistance_ohm`` as the prior of ``R0``.
+HEADER_SIGMA_REL = 0.005
+#: 1-sigma of the prior ``kappa = 0`` [1/J]: copper's alpha over a heat capacity of 10 J/K.
+KAPPA_PRIOR_PER_J = 0.00393 / 10.0
+#: A track is pinned when it leaves Psi at the peak uncertain by less than this fraction.
+PINNED_REL = 0.003
+#: Closure residuals this many times what the noise explains are a data problem.
+CLOSURE_FACTOR = 5.0
+#: Shortest thermal time constant the adiabatic model is meant for [s] (sets its model error).
+TAU_MODEL_S = 60.0
+_PLATEAU_PARTS = 4  # equations per plateau
+_MIN_BRANCH = 50  # samples a branch needs for closure (coarser ones interpolate the loop too roughly)
+_PEAK_TOL = 0.003  # peaks within 0.3 % (or 4 sigma of the current noise) count as the same height
+
+
+@dataclass
+class ResistanceTrack:
+    """R(t) of one recording (adiabatic Joule heating, see the module docstring) with its uncertainty.
+
+    Attributes
+    ----------
+    label : str
+        The recording's ``label()``.
+    time_s, R_t_ohm, energy_J : numpy.ndarray, shape (n,)
+        Sample times [s], the track R(t) [ohm] and the Joule energy since the first sample [J].
+    R0_ohm, R0_sigma_ohm : float
+        R at the first sample and its 1-sigma [ohm].
+    R_end_ohm, R_end_sigma_ohm : float
+        R at the last sample and its 1-sigma [ohm].
+    kappa_per_J, kappa_sigma_per_J : float
+        ``kappa = alpha / C_th`` [1/J] and its 1-sigma.
+    kappa_source : str
+        ``"recording"`` (this recording's data and the weak prior) or ``"campaign"`` (joint fit).
+    psi_peak_Wb, psi_peak_sigma_Wb : float
+        Psi at the highest current with this track [Wb] and the uncertainty the track leaves there.
+    pinned : bool
+        ``psi_peak_sigma_Wb < PINNED_REL |psi_peak_Wb|``.
+    constraints : list of str
+        The equations used (``"2 plateau(s)"``, ``"3 closure(s)"``, ``"end rest (weak)"``,
+        ``"header R prior"``, ``"kappa prior"`` / ``"campaign kappa"``).
+    header_R_ohm : float or None
+        The header's coil_resistance_ohm.
+    header_disagrees : bool
+        The header R differs from the data's R0 by more than 2 combined sigmas.
+    closure_rms_Wb, closure_noise_Wb : float
+        RMS residual of the closure equations with this track and what the noise explains [Wb]
+        (NaN without closure equations).
+    noise_scale : float
+        ``sqrt(chi^2 / dof)`` of the data equations (>= 1 was applied to the covariance; NaN: no dof).
+    why_not_pinned : str
+        Plain English, empty when pinned.
+    """
+
+    label: str
+    time_s: np.ndarray
+    R_t_ohm: np.ndarray
+    energy_J: np.ndarray
+    R0_ohm: float
+    R0_sigma_ohm: float
+    R_end_ohm: float
+    R_end_sigma_ohm: float
+    kappa_per_J: float
+    kappa_sigma_per_J: float
+    kappa_source: str
+    psi_peak_Wb: float
+    psi_peak_sigma_Wb: float
+    pinned: bool
+    constraints: list[str]
+    header_R_ohm: float | None
+    header_disagrees: bool
+    closure_rms_Wb: float
+    closure_noise_Wb: float
+    noise_scale: float
+    why_not_pinned: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> dict:
+        """JSON-able numbers (SI, NaN as None) and flags."""
+        def num(v):
+            return None if v is None or not math.isfinite(v) else float(v)
+        return {"file": self.label, "R_start_ohm": num(self.R0_ohm), "R_start_sigma_ohm": num(self.R0_sigma_ohm),
+                "R_end_ohm": num(self.R_end_ohm), "R_end_sigma_ohm": num(self.R_end_sigma_ohm),
+                "kappa_per_J": num(self.kappa_per_J), "kappa_sigma_per_J": num(self.kappa_sigma_per_J),
+                "kappa_source": self.kappa_source, "energy_J": num(float(self.energy_J[-1])),
+                "psi_peak_sigma_Wb": num(self.psi_peak_sigma_Wb), "pinned": self.pinned,
+                "constraints": list(self.constraints), "header_R_ohm": num(self.header_R_ohm),
+                "header_disagrees": self.header_disagrees, "closure_rms_Wb": num(self.closure_rms_Wb),
+                "closure_noise_Wb": num(self.closure_noise_Wb), "why_not_pinned": self.why_not_pinned,
+                "notes": list(self.notes)}
+
+
+@dataclass
+class _Equations:
+    """Linear equations ``g0 R0 + g1 c = y`` (+- sigma) of one recording, and what evaluates the track."""
+
+    rec: Recording
+    cond: Conditioned
+    y: np.ndarray
+    g: np.ndarray          # (m, 2)
+    sigma: np.ndarray
+    kinds: list[str]       # per equation: "plateau", "closure", "end"
+    energy_J: np.ndarray
+    B: np.ndarray          # (n, 2): B0, B1 per sample
+    A: np.ndarray          # (n,)
+    peak: int
+    R_prior: float | None
+    R_prior_sigma: float
+    R_ref: float           # c = kappa R_ref
+
+
+def _cumtrapz(y: np.ndarray, t: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(y, dtype=float)
+    out[1:] = np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t))
+    return out
+
+
+def _equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float | None,
+               R_prior_sigma: float) -> _Equations:
+    """All data equations of a recording, with the Joule energy from the current track ``R_t``."""
+    t, uc, ic = cond.t, cond.uc, cond.ic
+    E = _cumtrapz(R_t * ic * ic, t)
+    A = _cumtrapz(uc, t)
+    B = np.column_stack([_cumtrapz(ic, t), _cumtrapz(E * ic, t)])
+    R_nom = float(np.median(R_t))
+    sig_u = math.hypot(noise_std(rec.voltage_V), R_nom * cond.sigma_i)  # per sample [V]
+    ys, gs, ss, kinds = [], [], [], []
+
+    def add(w: np.ndarray, idx: np.ndarray, sigma: float, kind: str):
+        """Equation sum(w * Psi[idx]) = 0."""
+        ys.append(float(w @ A[idx]))
+        gs.append(w @ B[idx])
+        ss.append(sigma)
+        kinds.append(kind)
+
+    # (a) plateaus: Psi at the end of each settled run equals Psi at its start
+    mask = cond.plateau_mask()
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        cuts = np.linspace(a, b - 1, min(_PLATEAU_PARTS, (b - a) // 8) + 1).round().astype(int)
+        for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):  # parts: R changes along a long hold
+            add(np.array([1.0, -1.0]), np.array([hi, lo]), sig_u * cond.dt * math.sqrt(hi - lo), "plateau")
+    # (b) closure of consecutive cycles with the same peak
+    i_s = cond.i_s - cond.current_offset_A
+    branches = split_branches(ic, i_s, np.zeros_like(ic), cond.thr, cond.k_smooth)
+    asc, desc = branches[::2], branches[1::2]
+    for k in range(len(desc) - 1):
+        p0, p1 = desc[k].peak_A, desc[k + 1].peak_A
+        if abs(p0 - p1) > max(_PEAK_TOL * max(p0, p1), 4.0 * cond.sigma_i):
+            continue
+        grid = np.linspace(0.1, 0.9, 17) * min(p0, p1)
+        pairs = [(desc[k], desc[k + 1])] + ([(asc[k], asc[k + 1])] if k >= 1 else [])
+        for b0, b1 in pairs:
+            if min(b0.stop - b0.start, b1.stop - b1.start) < _MIN_BRANCH:
+                continue
+            rows = []
+            for arr in (A, B[:, 0], B[:, 1]):
+                d = branch_on_grid(ic[b0.start:b0.stop], arr[b0.start:b0.stop], grid) - \
+                    branch_on_grid(ic[b1.start:b1.stop], arr[b1.start:b1.stop], grid)
+                rows.append(d)
+            ok = np.all(np.isfinite(np.vstack(rows)), axis=0)
+            if ok.sum() < 5:
+                continue
+            n_between = 0.5 * ((b1.start + b1.stop) - (b0.start + b0.stop))
+            # noise: the voltage noise integrated between the branches, and the current noise seen
+            # through the branch slope dPsi/di, averaged over each branch's samples
+            br = A[b0.start:b0.stop] - R_nom * B[b0.start:b0.stop, 0]
+            slope = float(np.ptp(br)) / max(float(np.ptp(ic[b0.start:b0.stop])), 1e-12)
+            n_br = max(1.0, 0.5 * ((b0.stop - b0.start) + (b1.stop - b1.start)))
+            ys.append(float(np.mean(rows[0][ok])))
+            gs.append(np.array([np.mean(rows[1][ok]), np.mean(rows[2][ok])]))
+            ss.append(math.sqrt((sig_u * cond.dt) ** 2 * max(n_between, 1.0)
+                                + 2.0 * (cond.sigma_i * slope) ** 2 / n_br + (slope * (p0 - p1)) ** 2))
+            kinds.append("closure")
+    # (c) end rest of a single-cycle recording: Psi_end - Psi_0 = remanence, small
+    peak = int(np.argmax(i_s))
+    if len(desc) == 1 and cond.head is not None and cond.tail is not None and R_prior is not None:
+        n = t.size
+        psi_hdr = A - B[:, 0] * R_prior
+        lo, hi = max(0, peak - cond.k_smooth), min(n, peak + cond.k_smooth + 1)
+        width = np.nanmax(np.abs(branch_on_grid(ic[desc[0].start:desc[0].stop], psi_hdr[desc[0].start:desc[0].stop],
+                                                np.linspace(0.05, 0.95, 19) * desc[0].peak_A)
+                                 - branch_on_grid(ic[asc[0].start:asc[0].stop], psi_hdr[asc[0].start:asc[0].stop],
+                                                  np.linspace(0.05, 0.95, 19) * asc[0].peak_A)))
+        sigma_end = max(float(width) if math.isfinite(width) else 0.0, 0.01 * abs(float(np.mean(psi_hdr[lo:hi]))))
+        add(np.array([1.0, -1.0]), np.array([n - 1, 0]), sigma_end, "end")
+    return _Equations(rec=rec, cond=cond, y=np.array(ys), g=np.array(gs).reshape(-1, 2), sigma=np.array(ss),
+                      kinds=kinds, energy_J=E, B=B, A=A, peak=peak, R_prior=R_prior, R_prior_sigma=R_prior_sigma,
+                      R_ref=R_nom)
+
+
+def _prepare(rec: Recording, R_ohm: float | None, header_sigma_rel: float) -> tuple[Conditioned, float | None, float]:
+    cond = condition(rec)
+    R_prior = R_ohm if R_ohm is not None else rec.coil_resistance_ohm
+    if R_prior is not None and not (math.isfinite(R_prior) and R_prior > 0):
+        raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_prior!r}"])
+    return cond, R_prior, (header_sigma_rel * R_prior if R_prior is not None else math.inf)
+
+
+def _start_R(rec: Recording, cond: Conditioned, R_prior: float | None) -> float:
+    """The R the first Joule energy is computed with: the prior, else a plateau or closure mean."""
+    if R_prior is not None:
+        return R_prior
+    mask = cond.plateau_mask()
+    sel = mask if mask.any() else slice(None)
+    R = float(np.sum(cond.uc[sel] * cond.ic[sel]) / np.sum(cond.ic[sel] ** 2)) if mask.any() else \
+        float(np.trapezoid(cond.uc, cond.t) / np.trapezoid(cond.ic, cond.t))
+    if not (math.isfinite(R) and R > 0):
+        raise RecordingError(rec.label(), ["no coil resistance: no header coil_resistance_ohm, and neither plateaus "
+                                           "nor a closed excitation to estimate it from"])
+    return R
+
+
+def _solve(blocks: list[tuple[np.ndarray, np.ndarray]], n_par: int) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted least squares of stacked (whitened design, whitened rhs) blocks: estimate and (JtJ)^-1."""
+    J = np.vstack([b[0] for b in blocks]).reshape(-1, n_par)
+    r = np.concatenate([b[1] for b in blocks])
+    JtJ = J.T @ J
+    cov = np.linalg.pinv(JtJ)
+    return cov @ (J.T @ r), cov
+
+
+def _data_block(eq: _Equations, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    sig = eq.sigma * scale
+    return eq.g / sig[:, None], eq.y / sig
+
+
+def _fit_one(eq: _Equations, kappa: float, kappa_sigma: float) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """(R0, c), unscaled covariance, chi^2 and dof of the data equations; kappa prior as ``c = kappa R_ref``."""
+    blocks = [_data_block(eq)]
+    if eq.R_prior is not None:
+        blocks.append((np.array([[1.0, 0.0]]) / eq.R_prior_sigma, np.array([eq.R_prior / eq.R_prior_sigma])))
+    ks = kappa_sigma * eq.R_ref
+    blocks.append((np.array([[0.0, 1.0]]) / ks, np.array([kappa * eq.R_ref / ks])))
+    theta, cov = _solve(blocks, 2)
+    res = (eq.g @ theta - eq.y) / eq.sigma
+    dof = eq.y.size - (np.linalg.matrix_rank(eq.g) if eq.y.size else 0)
+    return theta, cov, float(res @ res), int(dof)
+
+
+def _scale(chi2: float, dof: int) -> float:
+    """Noise scale ``sqrt(chi^2 / dof)`` (NaN without dof)."""
+    return math.sqrt(chi2 / dof) if dof > 0 else math.nan
+
+
+def _model_error(cov: np.ndarray, c: float, duration_s: float) -> np.ndarray:
+    """``cov`` plus the adiabatic model's error: ``c`` uncertain by ``duration / (2 TAU_MODEL_S)`` (Newton
+    cooling, neglected, bends R(t) by about that fraction of the heating), moving R0 along the direction the
+    data leave free (the regression of R0 on c), so that what the data pin stays pinned."""
+    m2 = (abs(c) * duration_s / (2.0 * TAU_MODEL_S)) ** 2
+    v = np.array([cov[0, 1] / cov[1, 1] if cov[1, 1] > 0 else 0.0, 1.0])
+    return cov + m2 * np.outer(v, v)
+
+
+def _track(eq: _Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float, kappa_source: str,
+           extra: list[str]) -> ResistanceTrack:
+    """The track of one recording from its (R0, c) and their (scaled) covariance."""
+    R0, c = float(theta[0]), float(theta[1])
+    cov = _model_error(cov, c, float(eq.cond.t[-1] - eq.cond.t[0]))
+    E = eq.energy_J
+    R_t = R0 + c * E
+    gE = np.array([1.0, E[-1]])
+    psi = eq.A - eq.B @ theta
+    n, k = psi.size, eq.cond.k_smooth
+    lo, hi = max(0, eq.peak - k), min(n, eq.peak + k + 1)
+    psi_peak = float(np.mean(psi[lo:hi]))
+    gp = np.mean(eq.B[lo:hi], axis=0)
+    psi_sigma = math.sqrt(max(0.0, float(gp @ cov @ gp)))
+    s0, sc = math.sqrt(max(cov[0, 0], 0.0)), math.sqrt(max(cov[1, 1], 0.0))
+    kappa, kappa_sigma = c / R0, sc / R0
+    counts = {kind: eq.kinds.count(kind) for kind in ("plateau", "closure", "end")}
+    constraints = [f"{counts['plateau']} plateau(s)"] * bool(counts["plateau"]) + \
+        [f"{counts['closure']} closure(s)"] * bool(counts["closure"]) + ["end rest (weak)"] * bool(counts["end"]) + \
+        ["header R prior"] * (eq.R_prior is not None) + extra
+    cl = np.array([kd == "closure" for kd in eq.kinds], dtype=bool)
+    cl_rms = cl_noise = math.nan
+    if cl.any():
+        cl_rms = float(np.sqrt(np.mean((eq.g[cl] @ theta - eq.y[cl]) ** 2)))
+        cl_noise = float(np.sqrt(np.mean(eq.sigma[cl] ** 2)))
+    pinned = bool(psi_sigma < PINNED_REL * abs(psi_peak))
+    why = ""
+    if not pinned:
+        part0 = abs(gp[0]) * s0
+        part1 = abs(gp[1]) * sc
+        if part0 >= part1:
+            src = f"rests on the header's R (+-{100 * eq.R_prior_sigma / eq.R_prior:.2g} %)" \
+                if eq.R_prior is not None and s0 > 0.5 * eq.R_prior_sigma else "is not pinned by the data"
+            why = f"R at the start {src}"
+        else:
+            why = "the heating rate kappa is not pinned (no plateaus or closing cycles late enough to see it)"
+        why = (f"Psi at the peak uncertain by {100 * psi_sigma / max(abs(psi_peak), 1e-300):.2g} % "
+               f"(> {100 * PINNED_REL:.2g} %): {why}; data: {', '.join(constraints) or 'none'}")
+    hdr = eq.rec.coil_resistance_ohm
+    disagrees = bool(hdr is not None and abs(hdr - R0) > 2.0 * math.hypot(HEADER_SIGMA_REL * hdr, s0)
+                     and s0 < 0.5 * HEADER_SIGMA_REL * hdr)
+    notes = []
+    if disagrees:
+        notes.append(f"the header's coil_resistance_ohm {hdr:.4f} ohm disagrees with the data's R at the start "
+                     f"{R0:.4f} +- {s0:.4f} ohm ({100 * (hdr / R0 - 1):+.2f} %; header uncertainty "
+                     f"{100 * HEADER_SIGMA_REL:.2g} %): the data's value is used")
+    if cl.any() and cl_rms > CLOSURE_FACTOR * cl_noise:
+        notes.append(f"the loops do not close from cycle to cycle even with the best R track: closure residual "
+                     f"{cl_rms * 1e3:.3g} mWb RMS against {cl_noise * 1e3:.3g} mWb from the noise")
+    varE = float(gE @ cov @ gE)
+    return ResistanceTrack(
+        label=eq.rec.label(), time_s=eq.cond.t, R_t_ohm=R_t, energy_J=E, R0_ohm=R0, R0_sigma_ohm=s0,
+        R_end_ohm=float(R_t[-1]), R_end_sigma_ohm=math.sqrt(max(varE, 0.0)), kappa_per_J=kappa,
+        kappa_sigma_per_J=kappa_sigma, kappa_source=kappa_source, psi_peak_Wb=psi_peak,
+        psi_peak_sigma_Wb=psi_sigma, pinned=pinned, constraints=constraints, header_R_ohm=hdr,
+        header_disagrees=disagrees, closure_rms_Wb=cl_rms, closure_noise_Wb=cl_noise, noise_scale=noise_scale,
+        why_not_pinned=why, notes=notes)
+
+
+def _own_fit(rec: Recording, R_ohm: float | None, kappa: float, kappa_sigma: float, header_sigma_rel: float):
+    """Equations and fit of one recording alone, the Joule energy iterated once with the fitted track."""
+    cond, R_prior, R_sigma = _prepare(rec, R_ohm, header_sigma_rel)
+    R_t = np.full(cond.t.size, _start_R(rec, cond, R_prior))
+    for _ in range(2):
+        eq = _equations(rec, cond, R_t, R_prior, R_sigma)
+        theta, cov, chi2, dof = _fit_one(eq, kappa, kappa_sigma)
+        R_t = theta[0] + theta[1] * eq.energy_J
+    return eq, theta, cov, chi2, dof
+
+
+def resistance_track(rec: Recording, R_ohm: float | None = None, *, kappa_per_J: float | None = None,
+                     kappa_sigma_per_J: float | None = None,
+                     header_sigma_rel: float = HEADER_SIGMA_REL) -> ResistanceTrack:
+    """R(t) of one recording from its own voltage and current (model and equations: module docstring).
+
+    Parameters
+    ----------
+    rec : Recording
+        A recording with a ``voltage_V`` column.
+    R_ohm : float, optional
+        Prior of R at the start [ohm]; default the header's ``coil_resistance_ohm`` (neither: the data alone).
+    kappa_per_J, kappa_sigma_per_J : float, optional
+        A known heating rate ``alpha / C_th`` [1/J] and its 1-sigma (e.g. from :func:`campaign_resistance`);
+        default ``0 +- KAPPA_PRIOR_PER_J`` (weak).
+    header_sigma_rel : float
+        Relative 1-sigma of the prior R [1].
+
+    Returns
+    -------
+    ResistanceTrack
+
+    Raises
+    ------
+    RecordingError
+        No voltage; a zero current; no resistance in the header and none to estimate.
+    """
+    known = kappa_per_J is not None
+    kappa = float(kappa_per_J) if known else 0.0
+    ks = float(kappa_sigma_per_J) if kappa_sigma_per_J is not None else (0.0 if known else KAPPA_PRIOR_PER_J)
+    ks = max(ks, 1e-12)
+    eq, theta, cov, chi2, dof = _own_fit(rec, R_ohm, kappa, ks, header_sigma_rel)
+    ns = _scale(chi2, dof)
+    scale2 = max(1.0, ns * ns) if math.isfinite(ns) else 1.0
+    return _track(eq, theta, cov * scale2, ns, "given" if known else "recording",
+                  ["kappa given"] if known else ["kappa prior (weak)"])
+
+
+@dataclass
+class CampaignResistance:
+    """Resistance tracks of a campaign with one heating rate ``kappa`` (see :func:`campaign_resistance`).
+
+    Attributes
+    ----------
+    kappa_per_J, kappa_sigma_per_J : float
+        The joint heating rate ``alpha / C_th`` [1/J] and its 1-sigma.
+    tracks : dict of str to ResistanceTrack
+        Per recording label.
+    skipped : dict of str to str
+        Recordings left out of the joint fit, and why.
+    not_pinned : list of str
+        ``"<file>: <why>"`` for every track that is not pinned.
+    problems : list of str
+        Recordings whose loops do not close even with the best track (:func:`closure_problems`).
+    """
+
+    kappa_per_J: float
+    kappa_sigma_per_J: float
+    tracks: dict[str, ResistanceTrack]
+    skipped: dict[str, str]
+    not_pinned: list[str]
+    problems: list[str]
+
+    def track_for(self, rec: Recording) -> ResistanceTrack | None:
+        """The track of ``rec`` (by label), or None."""
+        return self.tracks.get(rec.label())
+
+    def summary(self) -> dict:
+        """JSON-able: kappa, per-recording tracks, what is skipped, not pinned, inconsistent."""
+        return {"kappa_per_J": float(self.kappa_per_J), "kappa_sigma_per_J": float(self.kappa_sigma_per_J),
+                "recordings": [tr.summary() for tr in self.tracks.values()], "skipped": dict(self.skipped),
+                "not_pinned": list(self.not_pinned), "problems": list(self.problems)}
+
+
+def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float = HEADER_SIGMA_REL
+                        ) -> CampaignResistance:
+    """One heating rate ``kappa`` for a campaign (same coil), R0 per recording, by joint least squares.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+        Any kinds; those with voltage at a fixed stroke take part (a moving armature changes Psi at
+        constant current, so neither plateaus nor closure hold).
+    header_sigma_rel : float
+        Relative 1-sigma of each header R as the prior of its R0 [1].
+
+    Returns
+    -------
+    CampaignResistance
+
+    Notes
+    -----
+    Each recording's equations are first fitted alone; their noise scale (``sqrt(chi^2/dof)``, at
+    least 1) weights its equations in the joint fit, so that one recording's model error does not
+    set the weights of the others. The joint fit is done twice, the Joule energy recomputed with
+    the tracks of the first.
+    """
+    fits, skipped = [], {}
+    for rec in recordings:
+        if rec.voltage_V is None:
+            skipped[rec.label()] = "no voltage column"
+            continue
+        if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
+            skipped[rec.label()] = "the armature moves: Psi changes at constant current"
+            continue
+        try:
+            eq, theta, cov, chi2, dof = _own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
+        except RecordingError as exc:
+            skipped[rec.label()] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
+            continue
+        ns = _scale(chi2, dof)
+        fits.append([eq, max(1.0, ns) if math.isfinite(ns) else 1.0, theta])
+    if not fits:
+        raise RecordingError("campaign_resistance", ["no recording with voltage at a fixed stroke"]
+                             + [f"{k}: {v}" for k, v in skipped.items()])
+    m = len(fits)
+    for _ in range(2):
+        rows, rhs = [], []
+        for j, (eq, sc, _theta) in enumerate(fits):
+            Jd, rd = _data_block(eq, sc)
+            block = np.zeros((Jd.shape[0], m + 1))
+            block[:, j] = Jd[:, 0]
+            block[:, m] = Jd[:, 1] * eq.R_ref
+            rows.append(block)
+            rhs.append(rd)
+            if eq.R_prior is not None:
+                prior = np.zeros((1, m + 1))
+                prior[0, j] = 1.0 / eq.R_prior_sigma
+                rows.append(prior)
+                rhs.append(np.array([eq.R_prior / eq.R_prior_sigma]))
+        prior = np.zeros((1, m + 1))
+        prior[0, m] = 1.0 / KAPPA_PRIOR_PER_J
+        rows.append(prior)
+        rhs.append(np.zeros(1))
+        theta, cov = _solve(list(zip(rows, rhs, strict=True)), m + 1)
+        for j, f in enumerate(fits):
+            eq = f[0]
+            R_t = theta[j] + theta[m] * eq.R_ref * eq.energy_J
+            f[0] = _equations(eq.rec, eq.cond, R_t, eq.R_prior, eq.R_prior_sigma)
+            f[2] = theta
+    chi2, n_eq = 0.0, 0
+    for j, (eq, sc, _t) in enumerate(fits):
+        r = (eq.g @ np.array([theta[j], theta[m] * eq.R_ref]) - eq.y) / (eq.sigma * sc)
+        chi2 += float(r @ r)
+        n_eq += r.size
+    dof = n_eq - (m + 1)
+    s2 = max(1.0, chi2 / dof) if dof > 0 else 1.0
+    cov = cov * s2
+    tracks = {}
+    for j, (eq, sc, _t) in enumerate(fits):
+        T = np.array([[1.0, 0.0], [0.0, eq.R_ref]])
+        idx = [j, m]
+        cj = T @ cov[np.ix_(idx, idx)] @ T.T
+        tracks[eq.rec.label()] = _track(eq, np.array([theta[j], theta[m] * eq.R_ref]), cj,
+                                        sc, "campaign", ["campaign kappa"])
+    not_pinned = [f"{lab}: {tr.why_not_pinned}" for lab, tr in tracks.items() if not tr.pinned]
+    durations = [float(f[0].cond.t[-1] - f[0].cond.t[0]) for f in fits]
+    kappa_sigma = math.hypot(math.sqrt(cov[m, m]), theta[m] * float(np.median(durations)) / (2.0 * TAU_MODEL_S))
+    return CampaignResistance(kappa_per_J=float(theta[m]), kappa_sigma_per_J=float(kappa_sigma),
+                              tracks=tracks, skipped=skipped, not_pinned=not_pinned,
+                              problems=closure_problems(list(tracks.values())))
+
+
+def closure_problems(tracks: list[ResistanceTrack]) -> list[str]:
+    """Recordings whose loops do not close from cycle to cycle even with their best R track.
+
+    Parameters
+    ----------
+    tracks : list of ResistanceTrack
+
+    Returns
+    -------
+    list of str
+        One plain-English problem per recording whose closure residual (RMS over its closure
+        equations) exceeds :data:`CLOSURE_FACTOR` times what the voltage and current noise explain.
+    """
+    out = []
+    for tr in tracks:
+        if math.isfinite(tr.closure_rms_Wb) and tr.closure_rms_Wb > CLOSURE_FACTOR * tr.closure_noise_Wb:
+            out.append(f"{tr.label}: the loops do not close from cycle to cycle even with the best resistance "
+                       f"track: closure residual {tr.closure_rms_Wb * 1e3:.3g} mWb RMS against "
+                       f"{tr.closure_noise_Wb * 1e3:.3g} mWb that the noise explains (more than "
+                       f"{CLOSURE_FACTOR:g}x): the data disagree with each other (a drifting offset or gain, "
+                       "a moving armature, a changing coil)")
+    return out
