@@ -7,6 +7,7 @@ import math
 import os
 import sys
 import sysconfig
+import zipfile
 from pathlib import Path
 
 from ..errors import FmuInputError
@@ -14,9 +15,10 @@ from ..fileio import refuse_overwriting_inputs
 from ..measure import write_recording
 from .export import BACKENDS, build_fmu
 from .interface import INTERFACES
+from .native import skipped_platforms
 from .simulate import simulate_recording
 
-__all__ = ["add_cli", "backend_advice"]
+__all__ = ["add_cli", "backend_advice", "platforms_note"]
 
 
 def add_cli(subparsers) -> None:
@@ -66,7 +68,20 @@ def _cmd_export(args: argparse.Namespace) -> int:
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, backend {args.backend}{where}; "
           "fmpy validation: no problems)")
     print(backend_advice(args.backend, interface))
+    if args.backend == "c":
+        print(platforms_note(path))
     return 0
+
+
+def platforms_note(fmu_path) -> str:
+    """Which platforms' binaries the native FMU carries, which it left out and why (printed by ``export``)."""
+    with zipfile.ZipFile(fmu_path) as zf:
+        folders = sorted({n.split("/")[1] for n in zf.namelist() if n.startswith("binaries/") and n.count("/") >= 2})
+    note = f"binaries: {', '.join(folders)}; sources/ (CMakeLists.txt) builds it on any other platform"
+    skipped = skipped_platforms()
+    if skipped:
+        note += "\nskipped " + "; ".join(f"{name}: {why}" for name, why in skipped.items())
+    return note
 
 
 def backend_advice(backend: str, interface: str = "cs+me") -> str:
