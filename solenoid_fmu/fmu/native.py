@@ -245,12 +245,15 @@ def _raw_model_description(guid: str, params: dict, tables: MapTables) -> bytes:
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
 
 
-def build_c_fmu(maps_dir, dest, tables: MapTables) -> str:
+def build_c_fmu(maps_dir, dest, tables: MapTables, *, fmi_version: int = 2) -> str:
     """Generate, compile and pack the native FMU into ``dest`` (description not yet final).
 
     Binaries: the machine's platform (:func:`host_target`, with :func:`find_compiler`) and every
     :data:`CROSS_TARGETS` platform whose cross compiler is installed (:func:`skipped_platforms` names
-    the others). Returns the ``generationTool`` string, which names the compiler of each binary.
+    the others). FMI 3.0 (``fmi_version=3``): the binaries of ``solenoid_fmi3.c`` (which includes
+    ``solenoid_fmu.c``) under the FMI 3.0 platform folders (``x86_64-linux``, ``x86_64-windows``),
+    exporting only the fmi3 functions. Returns the ``generationTool`` string, which names the compiler
+    of each binary.
     :func:`solenoid_fmu.fmu.build_fmu` then runs
     :func:`solenoid_fmu.fmu.model_description.finalize_model_description`.
     """
@@ -259,8 +262,12 @@ def build_c_fmu(maps_dir, dest, tables: MapTables) -> str:
     with tempfile.TemporaryDirectory(prefix="solenoid_fmu_c_") as tmp:
         tmp = Path(tmp)
         src = tmp / "sources"
-        guid = generate_sources(tables, src)
-        libs, compiled = compile_binaries(src, tmp / "binaries", fmi_version=2)
+        guid = generate_sources(tables, src, fmi_version=fmi_version)
+        if fmi_version == 3:
+            libs, compiled = compile_binaries(src, tmp / "binaries", fmi_version=3, source="solenoid_fmi3.c",
+                                              extra_flags=("-fvisibility=hidden",))
+        else:
+            libs, compiled = compile_binaries(src, tmp / "binaries", fmi_version=2)
         with zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("modelDescription.xml", _raw_model_description(guid, params, tables))
             for lib in libs:
