@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
+from test_fmu_c import HOST_C
 from test_fmu_c_effects import EFFECTS
 
 from solenoid_fmu import cli
@@ -196,3 +197,28 @@ def test_cli_export_fmi3_and_refusals(maps_dir, tmp_path, capsys):
     assert "the python backend writes FMI 2, not 3; export --backend c for FMI 3" in capsys.readouterr().err
     with pytest.raises(FmuBuildError, match="writes FMI 2 or 3"):
         F.build_fmu(maps_dir, tmp_path / "x.fmu", backend="c", fmi_version=4)
+
+
+def test_fmi3_c_host_long_runs_equal_the_fmi2_host_bit_for_bit(pair, tmp_path):
+    """tests/c/host_fmi3.c (the long runs of host.c through the fmi3 functions) gives the digests of
+    host.c on the FMI 2.0 binary: 2 x 20 000 cycles, every output bit equal, both drive modes."""
+    fmu2, fmu3 = pair
+    runs = {}
+    so = f"{F.MODEL_IDENTIFIER}.so"
+    for name, fmu, host_c, lib in (("fmi2", fmu2, HOST_C, f"linux64/{so}"),
+                                   ("fmi3", fmu3, HOST_C.with_name("host_fmi3.c"), f"x86_64-linux/{so}")):
+        unz = tmp_path / name
+        with zipfile.ZipFile(fmu) as zf:
+            zf.extractall(unz)
+        exe = tmp_path / f"host_{name}"
+        proc = subprocess.run([native.find_compiler(), "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
+                               f"-I{unz}/sources", "-o", str(exe), str(host_c), "-ldl", "-lm"],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        token = fmpy.read_model_description(str(fmu)).guid
+        args = [str(tmp_path / "ramp.csv"), "20000"] if name == "fmi2" else ["20000"]
+        proc = subprocess.run([str(exe), str(unz / "binaries" / lib), token, *args], capture_output=True, text=True,
+                              timeout=300)
+        assert proc.returncode == 0 and proc.stdout.strip().endswith("ok all"), proc.stdout + proc.stderr
+        runs[name] = sorted(line for line in proc.stdout.splitlines() if line.startswith("digest_"))
+    assert len(runs["fmi3"]) == 2 and runs["fmi3"] == runs["fmi2"]
