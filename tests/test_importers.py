@@ -123,6 +123,20 @@ def test_ecos_runs_both_backends_and_both_drive_modes_like_fmpy(maps_dir, tmp_pa
     _check_like_fmpy(ex_ecos.run(maps_dir, tmp_path))
 
 
+def test_ecos_runs_the_fmi3_native_fmu_like_the_fmi2_one(maps_dir, tmp_path):
+    """Ecos imports FMI 3.0 co-simulation: the native FMI 3.0 FMU gives the FMI 2.0 FMU's results, both drive modes."""
+    ex_ecos = _example("ex_ecos")
+    _load_or_skip("ecospy (Ecos)", ex_ecos.load_ecospy)
+    from solenoid_fmu.fmu import build_fmu
+
+    fmu2 = build_fmu(maps_dir, tmp_path / "s2.fmu", backend="c")
+    fmu3 = build_fmu(maps_dir, tmp_path / "s3.fmu", backend="c", fmi_version=3)
+    for drive, u in ((1, 12.0), (2, 1.0)):
+        got = ex_ecos.run_ecos(fmu3, drive, u, 1.5e-3, 0.05)
+        ref = ex_ecos.run_ecos(fmu2, drive, u, 1.5e-3, 0.05)
+        assert got["psi_Wb"] > 0.01 and got == ref
+
+
 _REMOTE = """
 import json, os, sys
 sys.path[:0] = [sys.argv[1], os.path.dirname(sys.argv[1])]  # examples/ and this checkout's solenoid_fmu

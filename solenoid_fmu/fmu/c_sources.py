@@ -50,6 +50,8 @@ from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES
 
 __all__ = [
     "C_SOURCE",
+    "C_SOURCE_FMI3",
+    "FMI3_HEADERS",
     "FMI_HEADERS",
     "check_implemented",
     "default_params",
@@ -61,8 +63,12 @@ __all__ = [
 
 #: The model source (package data) copied into the FMU's ``sources/``.
 C_SOURCE = Path(__file__).with_name("c") / "solenoid_fmu.c"
+#: The FMI 3.0 functions: they include ``solenoid_fmu.c`` (fmi2 names prefixed, not exported) and call it.
+C_SOURCE_FMI3 = Path(__file__).with_name("c") / "solenoid_fmi3.c"
 #: FMI 2.0 headers copied from fmpy's ``c-code`` directory.
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+#: FMI 3.0 headers copied from fmpy's ``c-code`` directory too (2-clause BSD licence in each header).
+FMI3_HEADERS = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
 
 
 def fmi_header_dir() -> Path:
@@ -70,7 +76,7 @@ def fmi_header_dir() -> Path:
     import fmpy  # third-party, loaded only when C sources are written
 
     d = Path(fmpy.__file__).parent / "c-code"
-    missing = [h for h in FMI_HEADERS if not (d / h).is_file()]
+    missing = [h for h in (*FMI_HEADERS, *FMI3_HEADERS) if not (d / h).is_file()]
     if missing:
         raise FmuBuildError(f"{d}: fmpy {fmpy.__version__} does not ship {', '.join(missing)}")
     return d
@@ -336,21 +342,32 @@ static const double SOL_CF[(SOL_N_PSI - 1) * (SOL_N_X - 1)][8] = {{
 """
 
 
-_CMAKE = """# Build the native solenoid FMU binary from these sources (FMI 2.0 source FMU).
+_CMAKE = """# Build the native solenoid FMU binary from these sources (FMI @VER@ source FMU).
 #   cmake -S . -B build && cmake --build build --config Release
 # Produces @ID@.so / .dll / .dylib; copy it to binaries/<platform>/ of the FMU.
 cmake_minimum_required(VERSION 3.10)
 project(@ID@ C)
-add_library(@ID@ SHARED solenoid_fmu.c)
-set_target_properties(@ID@ PROPERTIES PREFIX "" C_STANDARD 99)
+add_library(@ID@ SHARED @SRC@)
+set_target_properties(@ID@ PROPERTIES PREFIX "" C_STANDARD 99 C_VISIBILITY_PRESET hidden)
 if(NOT MSVC)
   target_compile_options(@ID@ PRIVATE -ffp-contract=off)
   target_link_libraries(@ID@ m)
 endif()
 """
 
+#: ``sources/buildDescription.xml`` of an FMI 3.0 source FMU (what fmpy and other importers compile).
+_BUILD_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiBuildDescription fmiVersion="3.0">
+  <BuildConfiguration modelIdentifier="@ID@">
+    <SourceFileSet language="C99">
+      <SourceFile name="solenoid_fmi3.c"/>
+    </SourceFileSet>
+  </BuildConfiguration>
+</fmiBuildDescription>
+"""
 
-def generate_sources(tables: MapTables, dest_dir, *, guid: str | None = None) -> str:
+
+def generate_sources(tables: MapTables, dest_dir, *, guid: str | None = None, fmi_version: int = 2) -> str:
     """Write the FMU's C sources (model, model and maps headers, FMI headers, CMakeLists.txt) into ``dest_dir``.
 
     Parameters
@@ -361,19 +378,26 @@ def generate_sources(tables: MapTables, dest_dir, *, guid: str | None = None) ->
         Directory to write (created).
     guid : str, optional
         GUID compiled into the binary; default: derived from the sources and the maps.
+    fmi_version : int
+        2, or 3: also ``solenoid_fmi3.c`` (the FMI 3.0 functions, built instead of ``solenoid_fmu.c``
+        which it includes), the FMI 3.0 headers and ``buildDescription.xml``.
 
     Returns
     -------
     str
-        The GUID (``{...}`` form) the binary checks in ``fmi2Instantiate``.
+        The GUID (``{...}`` form; FMI 3.0: the instantiation token) the binary checks when instantiated.
     """
+    if fmi_version not in (2, 3):
+        raise FmuBuildError(f"FMI version {fmi_version!r}: the native backend writes FMI 2 or 3")
     source = C_SOURCE.read_text(encoding="utf-8")
+    source3 = C_SOURCE_FMI3.read_text(encoding="utf-8") if fmi_version == 3 else ""
     check_implemented(source)
     dest = Path(dest_dir)
     params = default_params(tables)
     model_h = model_header()
     if guid is None:
         h = hashlib.sha256(source.encode())
+        h.update(source3.encode())
         h.update(model_h.encode())
         h.update(maps_header(tables, params, "").encode())
         guid = "{" + str(uuid.UUID(bytes=h.digest()[:16], version=4)) + "}"
@@ -383,7 +407,13 @@ def generate_sources(tables: MapTables, dest_dir, *, guid: str | None = None) ->
     (dest / "solenoid_maps.h").write_text(maps_h, encoding="utf-8")
     (dest / "solenoid_fmu.c").write_text(source, encoding="utf-8")
     hdr = fmi_header_dir()
-    for name in FMI_HEADERS:
+    for name in FMI_HEADERS + (FMI3_HEADERS if fmi_version == 3 else ()):
         shutil.copyfile(hdr / name, dest / name)
-    (dest / "CMakeLists.txt").write_text(_CMAKE.replace("@ID@", MODEL_IDENTIFIER), encoding="utf-8")
+    main = "solenoid_fmi3.c" if fmi_version == 3 else "solenoid_fmu.c"
+    if fmi_version == 3:
+        (dest / main).write_text(source3, encoding="utf-8")
+        (dest / "buildDescription.xml").write_text(_BUILD_DESCRIPTION.replace("@ID@", MODEL_IDENTIFIER),
+                                                   encoding="utf-8")
+    cmake = _CMAKE.replace("@ID@", MODEL_IDENTIFIER).replace("@SRC@", main).replace("@VER@", f"{fmi_version}.0")
+    (dest / "CMakeLists.txt").write_text(cmake, encoding="utf-8")
     return guid

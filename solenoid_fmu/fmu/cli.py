@@ -7,6 +7,7 @@ import math
 import os
 import sys
 import sysconfig
+import zipfile
 from pathlib import Path
 
 from ..errors import FmuInputError
@@ -14,9 +15,10 @@ from ..fileio import refuse_overwriting_inputs
 from ..measure import write_recording
 from .export import BACKENDS, build_fmu
 from .interface import INTERFACES
+from .native import skipped_platforms
 from .simulate import simulate_recording
 
-__all__ = ["add_cli", "backend_advice"]
+__all__ = ["add_cli", "backend_advice", "platforms_note"]
 
 
 def add_cli(subparsers) -> None:
@@ -37,6 +39,9 @@ def add_cli(subparsers) -> None:
                         "or cs (co-simulation only, outputs without direct feedthrough: no algebraic loops in "
                         "co-simulation masters such as OMSimulator; the only choice of --backend python)")
     p.add_argument("--name", help="modelName written into the FMU (default: 'solenoid <maps name>')")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="FMI version: 2 (default) or 3 (--backend c: an FMI 3.0 FMU from the same generated C, "
+                        "co-simulation and model exchange, the same variables as Float64/Int32/Boolean)")
     p.set_defaults(func=_cmd_export)
 
     s = subparsers.add_parser(
@@ -60,13 +65,28 @@ def add_cli(subparsers) -> None:
 def _cmd_export(args: argparse.Namespace) -> int:
     refuse_overwriting_inputs(args.output, [args.maps_dir / "maps.npz", args.maps_dir / "maps.json"])
     path = build_fmu(args.maps_dir, args.output, backend=args.backend, interface=args.interface,
-                     model_name=args.name)
+                     model_name=args.name, fmi_version=args.fmi)
     interface = args.interface or BACKENDS[args.backend].default_interface
     where = "" if interface == BACKENDS[args.backend].default_interface else f", interface {interface}"
+    where += ", FMI 3.0" if args.fmi == 3 else ""
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, backend {args.backend}{where}; "
           "fmpy validation: no problems)")
-    print(backend_advice(args.backend, interface))
+    print(backend_advice(args.backend, interface).replace("FMI 2.0", "FMI 3.0") if args.fmi == 3
+          else backend_advice(args.backend, interface))
+    if args.backend == "c":
+        print(platforms_note(path))
     return 0
+
+
+def platforms_note(fmu_path) -> str:
+    """Which platforms' binaries the native FMU carries, which it left out and why (printed by ``export``)."""
+    with zipfile.ZipFile(fmu_path) as zf:
+        folders = sorted({n.split("/")[1] for n in zf.namelist() if n.startswith("binaries/") and n.count("/") >= 2})
+    note = f"binaries: {', '.join(folders)}; sources/ (CMakeLists.txt) builds it on any other platform"
+    skipped = skipped_platforms()
+    if skipped:
+        note += "\nskipped " + "; ".join(f"{name}: {why}" for name, why in skipped.items())
+    return note
 
 
 def backend_advice(backend: str, interface: str = "cs+me") -> str:

@@ -1,4 +1,4 @@
-"""FMI 2.0 FMU of the real-time solenoid model: :func:`build_fmu` (CLI ``solenoid-fmu export``).
+"""FMI 2.0 (native also FMI 3.0) FMU of the real-time solenoid model: :func:`build_fmu` (CLI ``solenoid-fmu export``).
 
 ``build_fmu(maps_dir, dest_fmu)`` reads the maps, has a backend (:data:`BACKENDS`) write the FMU,
 completes its ``modelDescription.xml`` and documentation from the interface table
@@ -8,7 +8,9 @@ completes its ``modelDescription.xml`` and documentation from the interface tabl
 Backends: ``python`` packs the model for pythonfmu (:mod:`solenoid_fmu.fmu.python_backend`;
 co-simulation, needs Python with numpy where it runs); ``c`` generates and compiles native C with
 the same variables (:mod:`solenoid_fmu.fmu.native`), declared for co-simulation and model
-exchange (interface ``cs+me``, the default) or for co-simulation only (``cs``).
+exchange (interface ``cs+me``, the default) or for co-simulation only (``cs``); ``fmi_version=3``
+(``export --backend c --fmi 3``) gives FMI 3.0 from the same C
+(:mod:`solenoid_fmu.fmu.model_description3`).
 
 Semantics (see :mod:`solenoid_fmu.realtime.model`): inputs are held over a communication step;
 outputs are computed at the end of each step from the state and the inputs of that step.
@@ -28,6 +30,7 @@ from ..fileio import umask
 from ..maps import load_maps
 from ..realtime import MapTables, ModelMapsError, load_tables
 from .model_description import BackendDescription, finalize_model_description
+from .model_description3 import to_fmi3
 from .native import NATIVE_CS_DESCRIPTION, NATIVE_DESCRIPTION, build_c_fmu
 from .python_backend import PYTHON_DESCRIPTION, build_python_fmu
 
@@ -42,6 +45,7 @@ class Backend:
 
     build: Callable
     descriptions: dict
+    fmi_versions: tuple = (2,)
 
     @property
     def default_interface(self) -> str:
@@ -52,7 +56,7 @@ class Backend:
 #: runs); ``c``: native C, co-simulation and model exchange (``cs+me``) or co-simulation only (``cs``).
 BACKENDS = {
     "python": Backend(build_python_fmu, {"cs": PYTHON_DESCRIPTION}),
-    "c": Backend(build_c_fmu, {"cs+me": NATIVE_DESCRIPTION, "cs": NATIVE_CS_DESCRIPTION}),
+    "c": Backend(build_c_fmu, {"cs+me": NATIVE_DESCRIPTION, "cs": NATIVE_CS_DESCRIPTION}, (2, 3)),
 }
 
 
@@ -80,8 +84,8 @@ def load_maps_tables(maps_dir) -> MapTables:
 
 
 def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | None = None,
-              model_name: str | None = None, validate: bool = True) -> Path:
-    """Export the real-time model with the given maps as an FMI 2.0 FMU.
+              model_name: str | None = None, validate: bool = True, fmi_version: int = 2) -> Path:
+    """Export the real-time model with the given maps as an FMI 2.0 (or, native, FMI 3.0) FMU.
 
     Parameters
     ----------
@@ -100,6 +104,10 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
         ``modelName`` in the model description; default ``"solenoid <maps name>"``.
     validate : bool
         Check the result with ``fmpy.validation.validate_fmu``; any problem is an error.
+    fmi_version : int
+        2 (default), or 3 (``c`` backend only): an FMI 3.0 FMU from the same generated C, with the
+        same variables (Float64 / Int32 / Boolean) and the independent variable ``time``
+        (:mod:`solenoid_fmu.fmu.model_description3`).
 
     Returns
     -------
@@ -123,6 +131,9 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
         raise FmuBuildError(f"the {backend} backend offers interface {' or '.join(spec.descriptions)}, "
                             f"not {interface!r}")
     description: BackendDescription = spec.descriptions[interface]
+    if fmi_version not in spec.fmi_versions:
+        raise FmuBuildError(f"the {backend} backend writes FMI {' or '.join(map(str, spec.fmi_versions))}, "
+                            f"not {fmi_version!r}" + ("; export --backend c for FMI 3" if backend != "c" else ""))
     if dest.suffix.lower() != ".fmu":
         raise FmuBuildError(f"{dest}: the output file must end in .fmu")
     tables = load_maps_tables(maps_dir)
@@ -131,9 +142,11 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
     os.close(fd)
     tmp = Path(tmp_name)
     try:
-        tool = spec.build(maps_dir, tmp, tables)
+        tool = spec.build(maps_dir, tmp, tables, **({"fmi_version": 3} if fmi_version == 3 else {}))
         finalize_model_description(tmp, tables=tables, maps_dir=maps_dir, generation_tool=tool,
                                    model_name=model_name, backend=description)
+        if fmi_version == 3:
+            to_fmi3(tmp, tables)
         if validate:
             from fmpy.validation import validate_fmu  # third-party, slow to import: only when validating
 

@@ -1,7 +1,7 @@
 /*
  * Plain C host of the native solenoid FMU: dlopen, no Python in the process.
  *
- *   host LIB.so GUID OUT.csv N_LONG [fx]
+ *   host LIB.so FMU_GUID OUT.csv N_LONG [fx]
  *
  * With "fx" the FMU carries the effect variables (solenoid_fmu.fmu.EFFECT_VARIABLES after the base
  * ones) and every instance switches all four effects on (hysteresis, eddy ladder, heating, friction)
@@ -19,13 +19,21 @@
  * 6. long run: N_LONG voltage-driven steps of 1e-4 s with a changing input; no allocation during
  *    the run (counted through the allocateMemory callback); prints ns per step (ns_per_step). Then
  *    N_LONG current-driven steps with G_eddy = 0 (a Newton solve per step): ns_per_step_current_G0.
+ *    digest_voltage / digest_current: a digest of the bits of every output of each long run, so two
+ *    binaries (linux64, win64 under wine) are compared bit for bit over the whole run.
  *
  * Prints one "ok <check>" line per check and "ns_per_step <value>"; exits 1 on the first failure.
  */
 #define _POSIX_C_SOURCE 200809L
+#ifdef _WIN32
+#include "win_dlfcn.h"   /* the same checks on the win64 binary (mingw-w64 build, run under wine) */
+#else
 #include <dlfcn.h>
+#endif
+#include <inttypes.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -91,12 +99,24 @@ static void *sym(void *lib, const char *name)
     return p;
 }
 
-static const char *GUID;
+static const char *FMU_GUID;
+
+/* Digest of the bits of a run's outputs: rotate and xor in each double (any single changed bit shows). */
+static uint64_t digest_add(uint64_t h, const double *y, int n)
+{
+    int k;
+    for (k = 0; k < n; k++) {
+        uint64_t b;
+        memcpy(&b, &y[k], sizeof b);
+        h = ((h << 7) | (h >> 57)) ^ b;
+    }
+    return h;
+}
 
 /* Instantiate and initialize: mode 1 voltage, 2 current; u0 the drive input, x the gap. */
 static fmi2Component start(const char *name, int mode, double u0, double x, double G)
 {
-    fmi2Component c = F.instantiate(name, fmi2CoSimulation, GUID, "", &CB, fmi2False, fmi2True);
+    fmi2Component c = F.instantiate(name, fmi2CoSimulation, FMU_GUID, "", &CB, fmi2False, fmi2True);
     fmi2ValueReference vr_in[2] = {mode == 1 ? VR_U : VR_I, VR_X}, vr_g = VR_G, vr_d = VR_DRIVE;
     double in[2] = {u0, x};
     fmi2Integer m = mode;
@@ -123,6 +143,10 @@ static void step(fmi2Component c, int mode, double t, double h, double u, double
     CHECK(F.getReal(c, OUT_VR, NOUT, out) == fmi2OK, "getReal outputs");
 }
 
+/* Triangle wave in [0, 1] of period n steps: + - * / only (no libm), so the hosts of every platform feed
+ * the FMU the same bits (a libm sin differs between glibc and msvcrt in the last bit). */
+static double tri(long k, long n) { return 1.0 - fabs(2.0 * (double)(k % n) / (double)n - 1.0); }
+
 static double volt(int k) { return (k / 500) % 2 ? 0.0 : 24.0; }   /* 50 ms on, 50 ms off at h = 1e-4 */
 static double ramp(int k) { return 10.0 * 1e-4 * (k + 1); }           /* 10 A/s, value at the step end */
 
@@ -138,11 +162,11 @@ int main(int argc, char **argv)
     int k;
     long n_long;
     if (argc != 5 && !(argc == 6 && strcmp(argv[5], "fx") == 0)) {
-        fprintf(stderr, "usage: host LIB.so GUID OUT.csv N_LONG [fx]\n");
+        fprintf(stderr, "usage: host LIB.so FMU_GUID OUT.csv N_LONG [fx]\n");
         return 2;
     }
     FX = argc == 6;
-    GUID = argv[2];
+    FMU_GUID = argv[2];
     n_long = atol(argv[4]);
     lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
     CHECK(lib != NULL, dlerror());
@@ -167,7 +191,7 @@ int main(int argc, char **argv)
 
     /* 1. the 10 A/s ramp, current-driven */
     c = start("ramp", 2, 0.0, x, -1.0);
-    csv = fopen(argv[3], "w");
+    csv = fopen(argv[3], "wb");   /* "\n" line ends on every platform */
     CHECK(csv != NULL, "open csv");
     fprintf(csv, "t_s,i_out_A,U_out_V,F_N,psi_Wb,dpsi_dt_V,i_eddy_A\n");
     CHECK(F.getReal(c, OUT_VR, NOUT, out) == fmi2OK, "getReal at t0");
@@ -276,16 +300,18 @@ int main(int argc, char **argv)
         fmi2ValueReference vr_in[2] = {VR_U, VR_X}, vr_out[3] = {VR_I_OUT, VR_F, VR_PSI};
         double in[2];
         double ns;
+        uint64_t dig = 0;
         c = start("long", 1, 0.0, x, -1.0);
         alloc0 = n_alloc;
         clock_gettime(CLOCK_MONOTONIC, &t0);
         for (k = 0; k < n_long; k++) {
             u = (k / 500) % 2 ? 0.0 : 24.0;
             in[0] = u;
-            in[1] = FX ? x + 0.3e-3 * sin(2e-3 * k) : x;   /* with effects: a moving armature (friction) */
+            in[1] = FX ? x + 0.3e-3 * (2.0 * tri(k, 3142) - 1.0) : x;   /* with effects: a moving armature */
             F.setReal(c, vr_in, 2, in);
             if (F.doStep(c, k * h, h, fmi2True) != fmi2OK) CHECK(0, "long run doStep");
             F.getReal(c, vr_out, 3, y);
+            dig = digest_add(dig, y, 3);
         }
         clock_gettime(CLOCK_MONOTONIC, &t1);
         CHECK(n_alloc == alloc0, "no allocation during the long run");
@@ -293,25 +319,29 @@ int main(int argc, char **argv)
         ns = ((t1.tv_sec - t0.tv_sec) * 1e9 + (t1.tv_nsec - t0.tv_nsec)) / (double)(n_long > 0 ? n_long : 1);
         printf("ok long_run %ld steps\n", n_long);
         printf("ns_per_step %.1f\n", ns);
+        printf("digest_voltage %016" PRIx64 "\n", dig);
         F.terminate(c);
         F.freeInstance(c);
 
         /* the algebraic case (current mode, G = 0): a Newton solve per step, its worst-case path */
         c = start("long_current", 2, 0.0, x, 0.0);
         vr_in[0] = VR_I;
+        dig = 0;
         alloc0 = n_alloc;
         clock_gettime(CLOCK_MONOTONIC, &t0);
         for (k = 0; k < n_long; k++) {
-            in[0] = 2.0 * fabs(sin(1e-3 * k));
+            in[0] = 2.0 * tri(k, 3142);
             in[1] = x;
             F.setReal(c, vr_in, 2, in);
             if (F.doStep(c, k * h, h, fmi2True) != fmi2OK) CHECK(0, "long current run doStep");
             F.getReal(c, vr_out, 3, y);
+            dig = digest_add(dig, y, 3);
         }
         clock_gettime(CLOCK_MONOTONIC, &t1);
         CHECK(n_alloc == alloc0, "no allocation during the current-mode run");
         ns = ((t1.tv_sec - t0.tv_sec) * 1e9 + (t1.tv_nsec - t0.tv_nsec)) / (double)(n_long > 0 ? n_long : 1);
         printf("ns_per_step_current_G0 %.1f\n", ns);
+        printf("digest_current %016" PRIx64 "\n", dig);
         F.terminate(c);
         F.freeInstance(c);
     }
