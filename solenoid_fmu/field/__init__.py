@@ -2,7 +2,7 @@
 
 from .fem import Solution, Solver, solve_point, sweep_currents
 from .geometry import Geometry, load_geometry
-from .material import MU_0, MU_R_MAX, BHCurve, load_material, write_bh_csv
+from .material import MU_0, MU_R_MAX, BHCurve, load_material, unimodal_fit, write_bh_csv
 
 __all__ = ["BHCurve", "Geometry", "MU_0", "MU_R_MAX", "Solution", "Solver", "load_geometry", "load_material",
-           "solve_point", "sweep_currents", "write_bh_csv"]
+           "solve_point", "sweep_currents", "unimodal_fit", "write_bh_csv"]

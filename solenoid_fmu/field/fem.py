@@ -244,6 +244,8 @@ class Solver:
         self._pattern(linear_backend)
         self._config: _Config | None = None
         self.solves = 0
+        #: Relative residual target of Newton (callers that need less, e.g. the identification, raise it).
+        self.rtol = NEWTON_RTOL
 
     # -- sparsity pattern and scatter --------------------------------------------------------
     def _pattern(self, linear_backend: str | None):
@@ -431,7 +433,7 @@ class Solver:
                 rnorm = np.linalg.norm(res[free]) / fnorm
                 floor = np.finfo(float).eps * np.linalg.norm(floor_rows[free]) / fnorm
                 history.append(rnorm)
-                if rnorm <= max(NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor):
+                if rnorm <= max(self.rtol, NEWTON_FLOOR_FACTOR * floor):
                     it -= 1
                     break
                 if tiny_update and rnorm < NEWTON_STALL_RTOL:  # judged on the residual after the tiny update
@@ -472,10 +474,9 @@ class Solver:
             F_st = 0.0
         return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, residual_floor=floor, note=note)
 
-    @staticmethod
-    def _stall_note(i_A: float, x_m: float, rnorm: float, floor: float, why: str) -> str:
+    def _stall_note(self, i_A: float, x_m: float, rnorm: float, floor: float, why: str) -> str:
         """Log and return the note of a Newton stall accepted as converged (see ``NEWTON_STALL_RTOL``)."""
-        target = max(NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor)
+        target = max(self.rtol, NEWTON_FLOOR_FACTOR * floor)
         note = (f"Newton stopped at relative residual {rnorm:.2e} ({why}; target {target:.2g}, rounding floor "
                 f"{floor:.2g}); accepted as converged: below the stall tolerance {NEWTON_STALL_RTOL:g}")
         log.info("FEM point i = %g A, x = %g mm: %s", i_A, x_m * 1e3, note)

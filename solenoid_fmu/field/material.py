@@ -189,7 +189,7 @@ def check_bh_table(H, B, tol: float = 0.10, where: str = "B(H) table") -> None:
     # Unimodality with noise: the best unimodal fit of log(mu) (isotonic up to a peak, antitonic
     # after it); the table breaks the physics where it deviates from that fit by more than tol.
     y = np.log(mu)
-    fit, peak = _unimodal_fit(y)
+    fit, peak = unimodal_fit(y)
     dev = y - fit
     k = int(np.argmax(np.abs(dev)))
     if abs(dev[k]) > np.log1p(tol):
@@ -218,8 +218,9 @@ def _isotonic(y: np.ndarray) -> np.ndarray:
     return np.repeat(vals, cnts)
 
 
-def _unimodal_fit(y: np.ndarray) -> tuple[np.ndarray, int]:
-    """Best (least squares) fit of y rising to one peak then falling; returns (fit, peak index)."""
+def unimodal_fit(y: np.ndarray) -> tuple[np.ndarray, int]:
+    """Best (least squares: the L2 projection onto unimodal sequences) fit of y rising to one peak then
+    falling; returns (fit, peak index)."""
     best = None
     for p in range(len(y)):
         up = _isotonic(y[: p + 1])

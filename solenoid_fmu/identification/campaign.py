@@ -10,10 +10,13 @@ from tqdm import tqdm
 
 from ..errors import RecordingError
 from ..measure import commutation_curve, read_recording
+from .campaign_data import flux_points, force_points
 from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
 from .flux_model import as_curve, as_geometry
 from .io import write_curve_files
-from .measured import absolute_flux, group_flux, hysteresis_half_width
+from .joint import identify_joint
+from .joint_result import result_from_joint
+from .measured import absolute_flux, group_flux, groups_of, hysteresis_half_width
 from .report import write_report
 from .result import IdentificationResult
 
@@ -70,29 +73,46 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
     start = as_curve(start_material)
     mesh_size = DEFAULT_MESH_SIZE if mesh_size is None else float(mesh_size)
     main, others = group_flux(flux)
-    cc = commutation_curve(main)
-    i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
-    sigma = hysteresis_half_width(cc, i_sel)
     bar = None
     cb = None
     if progress:
-        bar = tqdm(desc=f"identify B(H) ({method})", unit="sweep", file=sys.stderr)
+        bar = tqdm(desc=f"identify B(H) ({method})", unit="FEM evaluation", file=sys.stderr)
 
         def cb(n, rms):
             bar.update(1)
             bar.set_postfix_str(f"flux RMS {rms * 100:.3f} %")
+    force_recs = [r for r in recs if r.kind == "force_stroke"]
     try:
-        res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method=method,
-                          progress=cb, sigma_Wb=sigma, **kwargs)
+        if method == "auglag":  # the paper's method: one stroke, flux only
+            cc = commutation_curve(main)
+            i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
+            sigma = hysteresis_half_width(cc, i_sel)
+            res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method=method,
+                              progress=cb, sigma_Wb=sigma, **kwargs)
+            res.extra["recordings"] = [str(r.path) for r in main]
+            others_used = others
+        else:
+            eddy = [r for r in recs if r.kind == "eddy" and r.voltage_V is not None]
+            pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy)
+            fpts, fnotes = force_points(force_recs)
+            fit = identify_joint(pts + fpts, geom, start, mesh_size, progress=cb, **kwargs)
+            cc = details["strokes"][max(details["strokes"], key=lambda k: len(groups_of(flux)[k]))]["cc"]
+            res = result_from_joint(fit, start, mesh_size, {
+                "recordings": [str(r.path) for r in flux],
+                "force_recordings": [str(r.path) for r in force_recs],
+                "notes": notes + fnotes + [f"left out {why}" for why in unusable],
+                "G_eddy_loops_S": details["G_eddy_S"]})
+            others_used = ()
+            for w in res.extra["warnings"]:
+                print(f"identify: warning: {w}", file=sys.stderr)
     finally:
         if bar is not None:
             bar.close()
-    res.extra["recordings"] = [str(r.path) for r in main]
     res.extra["measured_commutation"] = {"i_A": [float(v) for v in cc.i_A], "psi_Wb": [float(v) for v in cc.psi_Wb]}
     if out_csv is not None:
         write_curve_files(res, out_csv, sources=[r.path for r in main])
     if report_dir is not None:
-        write_report(res, report_dir, geometry=geom, other_flux=others,
+        write_report(res, report_dir, geometry=geom, other_flux=others_used,
                      force_recordings=[r for r in recs if r.kind == "force_stroke"])
     return res
 

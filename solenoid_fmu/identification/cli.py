@@ -63,5 +63,13 @@ def _cli(args) -> int:
     print(f"  FEM solves {res.fem_solves}, sweeps {res.sweeps:.1f}, equivalent sweeps {res.equivalent_sweeps:.1f}, "
           f"wall {res.wall_time_s:.1f} s")
     print(f"  constraint residuals {res.constraint_residuals}")
+    if res.extra.get("held_out"):
+        print(f"  chosen by held-out prediction: {res.extra['chosen']}; error per held-out group "
+              "(in-sample -> predicted without the group, RMS % of measured):")
+        for row in res.extra["held_out"]:
+            print(f"    {row['kind']:5s} {row['group']:<36.36s} {row['rms_in_pct']:6.2f} % -> "
+                  f"{row['rms_held_out_pct']:6.2f} % (max {row['max_held_out_pct']:.2f} %)")
+    for w in res.extra.get("warnings", []):
+        print(f"  WARNING: {w}")
     print(f"  wrote {args.output} (+ .bh, .tab)" + (f", report in {args.report}" if args.report else ""))
     return 0

@@ -60,6 +60,8 @@ __all__ = [
     "nlopt_code_name",
     "choose_currents",
     "identify_bh",
+    "projected_lm",
+    "LMResult",
 ]
 
 #: nlopt's return codes in words (``nlopt.opt.last_optimize_result()``).
@@ -92,16 +94,20 @@ _LSQ_STATUS = {-1: "improper input", 0: "evaluation budget reached", 1: "gradien
 STAGE2_GAIN = 0.7
 
 
-class _LMResult:
+class LMResult:
     def __init__(self, x, status, message, nfev):
         self.x, self.status, self.message, self.nfev = x, status, message, nfev
 
 
-def _projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4) -> _LMResult:
-    """Levenberg-Marquardt with the step projected onto the bounds (a box): one residual
-    evaluation (FEM sweep) per trial step and one Jacobian (adjoint solves) per accepted step.
-    Status as scipy's least_squares: 0 budget, 2 cost converged (relative decrease < ftol)."""
-    x = np.clip(np.asarray(x0, dtype=float), lo, hi)
+def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, project=None) -> LMResult:
+    """Levenberg-Marquardt with the step projected onto the bounds (a box), or by ``project(x)``
+    when given: one residual evaluation (FEM sweep) per trial step and one Jacobian (adjoint solves)
+    per accepted step. Status as scipy's least_squares: 0 budget, 2 cost converged (relative
+    decrease < ftol)."""
+    if project is None:
+        def project(v):
+            return np.clip(v, lo, hi)
+    x = project(np.asarray(x0, dtype=float))
     r = residual(x)
     cost = float(r @ r)
     J = jac(x)
@@ -112,7 +118,7 @@ def _projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4) 
         g = J.T @ r
         dA = np.diag(A).copy() + 1e-12
         step = -np.linalg.solve(A + mu * np.diag(dA), g)
-        xn = np.clip(x + step, lo, hi)
+        xn = project(x + step)
         rn = residual(xn)
         nfev += 1
         cn = float(rn @ rn)
@@ -121,13 +127,13 @@ def _projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4) 
             x, r, cost = xn, rn, cn
             mu = max(mu / 5.0, 1e-8)
             if done:
-                return _LMResult(x, 2, "cost converged (ftol)", nfev)
+                return LMResult(x, 2, "cost converged (ftol)", nfev)
             J = jac(x)
         else:
             mu *= 8.0
             if mu > 1e8:
-                return _LMResult(x, 3, "step small (xtol)", nfev)
-    return _LMResult(x, 0, "evaluation budget reached", nfev)
+                return LMResult(x, 3, "step small (xtol)", nfev)
+    return LMResult(x, 0, "evaluation budget reached", nfev)
 
 def choose_currents(i_A, psi_Wb, n: int = DEFAULT_N_CURRENTS) -> tuple[np.ndarray, np.ndarray]:
     """The currents [A] the fit uses, and the measured flux there (linear interpolation).
@@ -264,7 +270,7 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
             def jac(theta):
                 return np.vstack([fm.jacobian(theta) * (weights / scale)[:, None], w * D])
 
-            res = _projected_lm(residual, jac, theta1, lo, hi, max_nfev)
+            res = projected_lm(residual, jac, theta1, lo, hi, max_nfev)
             rms2 = wrms(flux_res(res.x))
             extra["stage2"] = {"rms_rel_peak": rms2, "accepted": bool(rms2 < STAGE2_GAIN * rms_stage1),
                                "status": _LSQ_STATUS.get(res.status, res.message)}

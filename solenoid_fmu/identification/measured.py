@@ -8,7 +8,7 @@ import numpy as np
 from ..errors import RecordingError
 from ..measure import flux_linkage, peak_curves
 
-__all__ = ["absolute_flux", "group_flux", "hysteresis_half_width", "force_stroke_curve"]
+__all__ = ["absolute_flux", "group_flux", "groups_of", "hysteresis_half_width", "force_stroke_curve"]
 
 
 def absolute_flux(recs) -> tuple[list, list[str]]:
@@ -27,12 +27,18 @@ def absolute_flux(recs) -> tuple[list, list[str]]:
     return keep, reasons
 
 
-def group_flux(recs) -> tuple[list, list[list]]:
-    """Flux recordings grouped by stroke (1 um); the identification group first: the most
-    recordings, then the highest peak current."""
+def groups_of(recs) -> dict[int, list]:
+    """Recordings grouped by stroke: {stroke in um (rounded): recordings}."""
     groups: dict[int, list] = {}
     for rec in recs:
         groups.setdefault(int(round(float(np.median(rec.positions_m())) * 1e6)), []).append(rec)
+    return groups
+
+
+def group_flux(recs) -> tuple[list, list[list]]:
+    """Flux recordings grouped by stroke (1 um); the identification group first: the most
+    recordings, then the highest peak current."""
+    groups = groups_of(recs)
     ordered = sorted(groups.values(), key=lambda g: (-len(g), -max(float(np.max(r.current_A)) for r in g)))
     return ordered[0], ordered[1:]
 

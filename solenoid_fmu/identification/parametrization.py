@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..field import MU_0, MU_R_MAX, BHCurve
+from ..field import MU_0, MU_R_MAX, BHCurve, unimodal_fit
 
 __all__ = [
     "MAX_TAIL_SLOPE",
@@ -30,6 +30,8 @@ __all__ = [
     "constraint_values",
     "constraint_residuals",
     "smoothness_matrix",
+    "project_unimodal",
+    "with_peak_of",
 ]
 
 #: Last log-log slope of chi: saturation law chi ~ H^-1.2 or faster (keeps B bounded-slope).
@@ -197,3 +199,27 @@ def scaled_curve(curve: BHCurve, log_a: float, log_s: float, name: str = "scaled
     H = np.concatenate([[0.0], np.cumsum(0.5 * (nu[1:] + nu[:-1]) * np.diff(B))])
     return BHCurve(B_T=B, nu_d=nu, H_A_per_m=H, table_H_A_per_m=H, table_B_T=B, name=name)
 
+
+
+def project_unimodal(model: SusceptibilityModel, theta) -> np.ndarray:
+    """theta moved to the nearest (least squares in ln chi at the nodes) parameters whose chi rises to
+    one peak, at any node, and then falls (paper sec. 4.2), within the model's other bounds.
+
+    The projection step of the stage-2 fit: unlike the bounds of :meth:`SusceptibilityModel.bounds`
+    it lets the peak (the B(H) inflection point) move to another node, which a steel unlike the
+    start curve needs.
+    """
+    theta = np.asarray(theta, dtype=float)
+    m = len(model.H_nodes)
+    lo, hi = model.bounds()
+    fit, _ = unimodal_fit(model.log_chi_nodes(theta))
+    fit[0] = np.clip(fit[0], lo[0], hi[0])
+    fit = np.minimum(np.maximum(fit, fit[0] - 10.0), fit[0] + 10.0)
+    d = np.clip(np.diff(fit), -10.0, 10.0)
+    out = np.concatenate([[fit[0]], d, [np.clip(theta[m], lo[m], hi[m])]])
+    return out
+
+
+def with_peak_of(model: SusceptibilityModel, theta) -> SusceptibilityModel:
+    """The model with its peak node where chi of ``theta`` peaks (for its bounds and constraints)."""
+    return SusceptibilityModel(model.H_nodes, int(np.argmax(model.log_chi_nodes(np.asarray(theta, dtype=float)))))

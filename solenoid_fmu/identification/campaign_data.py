@@ -1,0 +1,243 @@
+r"""What a campaign tells about the steel: measured operating points with their uncertainty.
+
+Every recording that carries the steel's magnetization is used (issue "the identified B(H) must
+hold on real campaigns"):
+
+- **Flux** (``flux`` recordings starting at rest with a measured voltage offset): at each stroke,
+  the commutation curve (mean of ascending and descending branch, paper sec. 4) at
+  ``n_currents`` currents. Before the branches are averaged the rate-dependent part of the loops
+  is taken out: eddy currents add ``G dPsi/dt`` to the current (paper eq. 2), so the recordings'
+  loops are split into a rate-independent half-width (hysteresis) and ``G`` by least squares over
+  all loops (:func:`eddy_split`); the branch mean is then taken in ``i - G dPsi/dt``, where it is
+  unbiased, and only the rate-independent half-width counts as the mean's uncertainty.
+- **Force** (``force_stroke`` recordings at constant current): friction averaged out between the
+  closing and the opening pass (:func:`~.measured.force_stroke_curve`), sampled at
+  :data:`FORCE_POSITIONS` positions. The force does not depend on the coil resistance, so it is
+  immune to coil heating.
+
+Uncertainty of a point (1 sigma, absolute): a relative floor (:data:`PSI_FLOOR_REL`,
+:data:`FORCE_FLOOR_REL`, of the value or of a fifth of the recording's largest value, whichever
+is larger), and for flux the bias of the branch mean of a rate-independent loop, second order in
+its current half-width h: ``|Psi''| h^2 / 2``, plus :data:`LOOP_ASYMMETRY` times the half-width
+(the first, virgin ascent is not symmetric to the descending branch).
+
+Units: SI (A, m, Wb, N).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import RecordingError
+from ..measure import campaign_resistance, commutation_curve, flux_linkage, peak_curves
+from .measured import force_stroke_curve, groups_of
+
+__all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
+           "flux_points", "force_points", "eddy_split", "resistance_choice", "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD"]
+
+#: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
+PSI_FLOOR_REL = 2e-3
+#: Relative 1-sigma floor of a measured force point (load cell, friction not quite symmetric).
+FORCE_FLOOR_REL = 4e-3
+#: Share of the rate-independent loop half-width counted as the branch mean's first-order bias.
+LOOP_ASYMMETRY = 0.1
+#: The coil counts as heating when the campaign's kappa exceeds this many of its sigmas.
+KAPPA_SIGNIFICANT = 3.0
+#: Current rates must differ by this factor among the loops to tell eddy currents from hysteresis.
+EDDY_RATE_SPREAD = 2.0
+#: Positions taken from each force-stroke curve (evenly over the range passed both ways).
+FORCE_POSITIONS = 4
+
+
+@dataclass(frozen=True)
+class MeasuredPoint:
+    """One measured operating point: ``kind`` ``"psi"`` [Wb] or ``"force"`` [N] at (i_A, x_m),
+    ``value`` and ``sigma`` (1-sigma, same unit), ``group`` (held-out unit: a stroke, a current
+    band or a force recording) and ``source`` (file names)."""
+
+    kind: str
+    i_A: float
+    x_m: float
+    value: float
+    sigma: float
+    group: str
+    source: str
+
+
+def _branch_pairs(results):
+    """(ascending, descending) branch pairs of every peak of every flux result."""
+    out = []
+    for res in results:
+        br = res.branches
+        for k in range(0, len(br) - 1, 2):
+            if br[k].direction == "ascending" and br[k + 1].direction == "descending":
+                out.append((res, br[k], br[k + 1]))
+    return out
+
+
+def eddy_split(results) -> tuple[float, str]:
+    """Eddy conductance G [S] of the current-driven loops: a loop's current width at equal flux is
+    ``2 h(Psi) + G (|dPsi/dt|_asc + |dPsi/dt|_desc)`` (paper eq. 2); with h(Psi) a smooth function
+    of the flux (a cubic in Psi / Psi_peak), G follows by least squares over all loops of all
+    recordings (slow ``flux`` and fast ``eddy`` triangles).
+
+    G and h can only be told apart by loops run at different current rates (at one rate the flux
+    rate at a given flux is the same in every loop): with rates within a factor
+    :data:`EDDY_RATE_SPREAD`, G is 0 and the whole loop counts as hysteresis. Returns G (>= 0) and a
+    note in words.
+    """
+    rows, rhs, rates_A = [], [], []
+    for res, up, down in _branch_pairs(results):
+        t, psi, i = res.time_s, res.psi_Wb, res.current_A
+        s_up, s_dn = slice(up.start, up.stop), slice(down.start, down.stop)
+        if up.stop - up.start < 8 or down.stop - down.start < 8:
+            continue
+        p_up, p_dn = psi[s_up], psi[s_dn]
+        top = float(max(p_up.max(), p_dn.max()))
+        if top <= 0:
+            continue
+        grid = np.linspace(0.15 * top, 0.85 * top, 12)
+        rate_up = np.gradient(p_up, t[s_up])
+        rate_dn = np.gradient(p_dn, t[s_dn])
+        o_up, o_dn = np.argsort(p_up), np.argsort(p_dn)
+        i_up = np.interp(grid, p_up[o_up], i[s_up][o_up])
+        i_dn = np.interp(grid, p_dn[o_dn], i[s_dn][o_dn])
+        r_up = np.interp(grid, p_up[o_up], np.abs(rate_up)[o_up])
+        r_dn = np.interp(grid, p_dn[o_dn], np.abs(rate_dn)[o_dn])
+        rates_A.append(float(np.median(np.abs(np.gradient(i[s_up], t[s_up])))))
+        z = grid / top
+        for zk, w, r in zip(z, i_up - i_dn, r_up + r_dn, strict=True):
+            rows.append([r, 1.0, zk, zk**2, zk**3])
+            rhs.append(w)
+    if len(rows) < 8:
+        return 0.0, "eddy loops: too few branches to separate rate-dependent loops"
+    if max(rates_A) < EDDY_RATE_SPREAD * max(min(rates_A), 1e-12):
+        return 0.0, (f"eddy loops: current rates {min(rates_A):.3g}-{max(rates_A):.3g} A/s too alike to tell eddy "
+                     "currents from hysteresis: the whole loop width counts as hysteresis")
+    sol, *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+    G = max(float(sol[0]), 0.0)
+    return G, (f"eddy loops: G = {G * 1e3:.3g} mS from {len(rows)} loop widths at {min(rates_A):.3g}-"
+               f"{max(rates_A):.3g} A/s (taken out of the current before the branch mean)")
+
+
+def flux_points(recs, n_currents: int, choose, eddy_recs=()) -> tuple[list[MeasuredPoint], list[str], dict]:
+    """Measured commutation-curve points at every stroke (see the module docstring).
+
+    ``choose(i_A, psi_Wb, n)`` picks the currents (:func:`~.fit.choose_currents`); ``eddy_recs``
+    (fast triangles from rest) only help to tell eddy loops from hysteresis. Returns the
+    points, notes and per-stroke details (``curves``: commutation curves for the report).
+    """
+    groups = groups_of(recs)
+    camp, heated, notes = resistance_choice(recs)
+    ccs = {key: commutation_curve(g, resistance=camp if heated else None) for key, g in groups.items()}
+    all_results = [r for cc in ccs.values() for r in cc.results]
+    for rec in eddy_recs:
+        fr = flux_linkage(rec, resistance=camp.track_for(rec) if heated and camp.track_for(rec) else None)
+        if fr.starts_at_rest and fr.offset_measured:
+            all_results.append(fr)
+    G, note = eddy_split(all_results)
+    notes.append(note)
+    points: list[MeasuredPoint] = []
+    details = {}
+    for key, cc in sorted(ccs.items()):
+        com_i, com_psi, half = _corrected_curve(cc, G)
+        i_sel, psi_sel = choose(com_i, com_psi, n_currents)
+        half_w = np.interp(i_sel, com_i, half)
+        slope = np.gradient(com_psi, com_i)
+        curv = np.gradient(slope, com_i)
+        d1 = np.maximum(np.interp(i_sel, com_i, slope), 1e-12)
+        d2 = np.abs(np.interp(i_sel, com_i, curv))
+        h_i = half_w / d1
+        peak = float(np.max(np.abs(com_psi)))
+        floor = PSI_FLOOR_REL * np.maximum(np.abs(psi_sel), 0.2 * peak)
+        track = _track_sigma_rel(cc, camp) if heated else 0.0
+        sigma = np.sqrt(floor**2 + (track * np.abs(psi_sel)) ** 2 + (0.5 * d2 * h_i**2 + LOOP_ASYMMETRY * half_w) ** 2)
+        x = cc.position_m
+        names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))
+        for i, p, s in zip(i_sel, psi_sel, sigma, strict=True):
+            points.append(MeasuredPoint("psi", float(i), x, float(p), float(s), f"flux@{x * 1e3:.3f}mm", names))
+        details[key] = {"cc": cc, "i_A": i_sel, "psi_Wb": psi_sel, "sigma_Wb": sigma, "half_width_Wb": half_w}
+    if len(ccs) == 1:  # one stroke: hold out current bands instead
+        n = len(points)
+        band = np.minimum((np.arange(n) * 3) // max(n, 1), 2)
+        points = [MeasuredPoint(p.kind, p.i_A, p.x_m, p.value, p.sigma, f"{p.group}/band{b}", p.source)
+                  for p, b in zip(points, band, strict=True)]
+    return points, notes, {"G_eddy_S": G, "strokes": details, "resistance": camp.summary(), "heated": heated}
+
+
+def resistance_choice(recs) -> tuple:
+    """The campaign's resistance tracks (:func:`~solenoid_fmu.measure.campaign_resistance`) and whether
+    the eq.-4 flux must use them: the coil heats measurably (kappa above :data:`KAPPA_SIGNIFICANT`
+    sigmas) or a header resistance disagrees with the data. Else the header resistance (measured
+    before each run) is the better value: a single-cycle recording's track rests on it anyway, and
+    its loop need not close (the remanence of a hysteretic steel is several per cent of the peak
+    flux). Returns (campaign tracks, heated, notes)."""
+    camp = campaign_resistance(recs)
+    why = []
+    if camp.kappa_per_J > KAPPA_SIGNIFICANT * camp.kappa_sigma_per_J:
+        why.append(f"the coil heats (kappa = {camp.kappa_per_J:.3g} +- {camp.kappa_sigma_per_J:.2g} 1/J)")
+    why += [f"{tr.label}: header resistance disagrees with the data (R0 = {tr.R0_ohm:.5g} +- "
+            f"{tr.R0_sigma_ohm:.2g} ohm)" for tr in camp.tracks.values() if tr.header_disagrees]
+    heated = bool(why)
+    notes = ([f"resistance: R(t) tracks used for eq. 4 because {'; '.join(why)}"] if heated else
+             ["resistance: the header resistances hold (no measurable heating, no header at odds with the data)"])
+    if heated:
+        notes += [f"resistance not pinned: {w}" for w in camp.not_pinned]
+        notes += [f"resistance: {w}" for w in camp.problems]
+    return camp, heated, notes
+
+
+def _track_sigma_rel(cc, camp) -> float:
+    """Relative flux uncertainty the resistance tracks leave in a stroke's commutation curve: the
+    recordings' relative Psi-at-peak sigmas, averaged over the recordings (independent tracks)."""
+    rel = []
+    for res in cc.results:
+        tr = res.track
+        if tr is not None and tr.psi_peak_Wb:
+            rel.append(tr.psi_peak_sigma_Wb / abs(tr.psi_peak_Wb))
+    if not rel:
+        return 0.0
+    return float(np.sqrt(np.mean(np.square(rel))) / np.sqrt(len(rel)))
+
+
+def _corrected_curve(cc, G_S: float, n: int = 101) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Commutation curve (i [A], Psi [Wb]) and rate-independent loop half-width [Wb] of ``cc``'s
+    branches with the eddy current ``G dPsi/dt`` taken out of the current."""
+    branches = []
+    for res in cc.results:
+        rate = np.gradient(res.psi_Wb, res.time_s)
+        for br in res.branches:
+            branches.append(dataclasses.replace(br, i_A=br.i_A - G_S * rate[br.start:br.stop]))
+    grid = np.linspace(0.0, max(b.peak_A for b in branches), n)
+    means, widths = peak_curves(branches, grid)
+    stack, wst = np.vstack(means), np.vstack(widths)
+    count = np.sum(np.isfinite(stack), axis=0)
+    keep = count > 0
+    with np.errstate(all="ignore"):
+        psi = np.nansum(stack[:, keep], axis=0) / count[keep]
+        half = 0.5 * np.abs(np.nanmean(wst[:, keep], axis=0))
+    half = np.where(np.isfinite(half), half, 0.0)
+    return grid[keep], psi, half
+
+
+def force_points(recs) -> tuple[list[MeasuredPoint], list[str]]:
+    """Force points from ``force_stroke`` recordings (friction averaged; see the module docstring)."""
+    points, notes = [], []
+    for rec in recs:
+        try:
+            fc = force_stroke_curve(rec)
+        except RecordingError as exc:
+            notes.append(f"force: left out {exc}")
+            continue
+        x, F = fc["x_m"], fc["force_N"]
+        xs = np.linspace(x.min(), x.max(), FORCE_POSITIONS + 2)[1:-1]
+        Fs = np.interp(xs, x, F)
+        Fmax = float(np.max(np.abs(F)))
+        sig = FORCE_FLOOR_REL * np.maximum(np.abs(Fs), 0.2 * Fmax)
+        name = rec.path.name if rec.path else rec.label()
+        for xv, fv, sv in zip(xs, Fs, sig, strict=True):
+            points.append(MeasuredPoint("force", fc["i_A"], float(xv), float(fv), float(sv), f"force:{name}", name))
+    return points, notes
