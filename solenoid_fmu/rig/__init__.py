@@ -3,7 +3,7 @@
 Modules: :mod:`.effects` (the truth's effects), :mod:`.excitation` (what the rig drives, the
 campaign), :mod:`.truth` (the truth model), :mod:`.daq` (sensors and converters),
 :mod:`.campaign` (running a campaign, ``truth.json``), :mod:`.protocols` (randomized campaigns
-of other rigs, for tests), :mod:`.cli` (``solenoid-fmu rig``).
+of other rigs, for tests), :mod:`.steels` (randomized steels, for tests), :mod:`.cli` (``solenoid-fmu rig``).
 """
 
 from .campaign import TRUTH_SCHEMA, RigTruth, read_truth, run_campaign, run_excitations
@@ -12,6 +12,7 @@ from .effects import EFFECT_NAMES, EddyLadder, Effects, Friction, Heating, Hyste
 from .errors import RigError
 from .excitation import CampaignConfig, Excitation, campaign_excitations
 from .protocols import random_campaign, random_protocol
+from .steels import random_steel, random_steel_parameters
 from .truth import TruthModel
 
 __all__ = [
@@ -35,5 +36,7 @@ __all__ = [
     "random_protocol",
     "read_truth",
     "run_campaign",
+    "random_steel",
+    "random_steel_parameters",
     "run_excitations",
 ]

@@ -1,0 +1,119 @@
+"""Make the truth steels of the identification tests: ``tests/data/truth-steels/<name>/``.
+
+Run from the repository root (about 1 min per steel and core; ``--workers 2`` runs two steels at once)::
+
+    python tests/data/make_truth_steels.py            # all truths
+    python tests/data/make_truth_steels.py DC03 random-2 --workers 1
+
+For every published steel of :data:`solenoid_fmu.field.STEELS` (Modelica FluxTubes records) and six
+random steels (``random-<seed>``: :func:`solenoid_fmu.rig.random_steel_parameters` with
+``numpy.random.default_rng(seed)``, seeds 0-5) it writes
+
+- ``steel.csv``: the true B(H) (``H_A_per_m,B_T``): the Roschke table of the parameter set
+  (:func:`solenoid_fmu.field.steels.roschke_table`), the parameters in the comment lines;
+- ``maps.npz`` + ``maps.json``: the PS45 characteristic maps with that steel, by
+  :func:`solenoid_fmu.maps.build_maps` and :func:`solenoid_fmu.maps.save_maps` (readable by
+  :func:`solenoid_fmu.maps.load_maps`, :func:`solenoid_fmu.realtime.read_maps_dir`, the rig).
+
+The FEM runs on the curve loaded back from ``steel.csv`` (so the file is the truth), with a
+discretization other than the identification's (see ``tests/truthsteels.py``): a new mesh at every
+stroke (no morph), mesh size ``TRUTH_MESH_SIZE`` (0.7; the identification: 2.0, morphed from
+mid-stroke). Grid: the rig's 12 strokes (``default_positions`` over 0.2 ... 3.5 mm) and 16 currents
+(``default_currents(2.5 A, 16)``), each joined with the yardstick's strokes and currents, so the
+yardstick reads FEM nodes. ``maps.json`` records under ``provenance.test_truth`` that this is a
+test truth, the mesh and the steel's parameters.
+
+Deterministic: the same code gives the same arrays (``maps.npz`` byte for byte); ``maps.json``
+also records the run's time, wall time and git commit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: truthsteels
+
+import truthsteels as T  # noqa: E402
+
+from solenoid_fmu.field import STEELS, load_geometry, load_material, write_bh_csv  # noqa: E402
+from solenoid_fmu.field.steels import roschke_table  # noqa: E402
+from solenoid_fmu.maps import InlineExecutor, build_maps, default_currents, default_positions, save_maps  # noqa: E402
+from solenoid_fmu.rig import random_steel_parameters  # noqa: E402
+
+N_X = 12
+N_I = 16
+I_TOP_A = 2.5
+
+
+def parameters(name: str):
+    """The Roschke parameters of a truth (published record or seeded random draw)."""
+    if T.is_published(name):
+        return STEELS[name]
+    seed = int(name.split("-", 1)[1])
+    return random_steel_parameters(np.random.default_rng(seed), name)
+
+
+def grid(geometry) -> tuple[np.ndarray, np.ndarray]:
+    """(x [m], i [A]) of the truth maps: the rig's usual grid joined with the yardstick's points."""
+    st = geometry.stroke
+    x = np.union1d(np.round(default_positions(st.min_m, st.max_m, N_X), 12), T.EVAL_STROKES_M)
+    i = np.union1d(np.round(default_currents(I_TOP_A, N_I), 12), T.EVAL_CURRENTS_A)
+    return x, i
+
+
+def make_truth(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, float]:
+    """Write one truth directory; returns (name, wall time [s])."""
+    t0 = time.perf_counter()
+    p = parameters(name)
+    out = T.TRUTHS_DIR / name
+    out.mkdir(parents=True, exist_ok=True)
+    H, B = roschke_table(p, name)
+    comment = (f"True B(H) of the test truth {name}: Roschke's mu_r(B) = 1 + (mu_i - 1 + c_a*B_N) / "
+               f"(1 + c_b*B_N + B_N^n), B_N = |B|/B_myMax,\nmu_i = {p.mu_i!r}, B_myMax = {p.B_myMax_T!r} T, "
+               f"c_a = {p.c_a!r}, c_b = {p.c_b!r}, n = {p.n!r} ({p.label}; {p.record}),\n"
+               f"tabulated H = B/(mu0 mu_r(B)) at B = 0.05 ... {B[-1]:.2f} T "
+               "(solenoid_fmu.field.steels.roschke_table); "
+               "made by tests/data/make_truth_steels.py")
+    write_bh_csv(out / "steel.csv", H, B, comment=comment)
+    geometry = load_geometry()
+    curve = load_material(out / "steel.csv")
+    x, i = grid(geometry)
+    maps = build_maps(geometry, curve, x_m=x, i_A=i, mesh_size=mesh_size, executor=InlineExecutor(),
+                      progress=False, sweep=T.remeshed_sweep, name=f"truth-steel-{name}")
+    meta = maps.metadata
+    meta["provenance"]["test_truth"] = {
+        "purpose": "test truth of tests/test_truth_steels.py (not a product map)",
+        "mesh": f"built at each stroke (x_ref_m = x, not morphed), mesh_size {mesh_size:g}",
+        "mesh_size": float(mesh_size),
+        "steel": {**dataclasses.asdict(p), "kind": "published" if T.is_published(name) else "random"},
+    }
+    save_maps(dataclasses.replace(maps, metadata=meta), out)
+    return name, time.perf_counter() - t0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("names", nargs="*", help=f"truths to make (default all: {', '.join(T.truth_names())})")
+    ap.add_argument("--workers", type=int, default=2, help="steels made at once (processes)")
+    ap.add_argument("--mesh-size", type=float, default=T.TRUTH_MESH_SIZE)
+    args = ap.parse_args(argv)
+    names = args.names or T.truth_names()
+    for n in names:
+        T.is_published(n)  # refuses unknown names before any work
+    t0 = time.perf_counter()
+    with cf.ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
+        for name, wall in pool.map(make_truth, names, [args.mesh_size] * len(names)):
+            print(f"{name}: {wall:.1f} s", flush=True)
+    print(f"{len(names)} truths in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
