@@ -19,7 +19,9 @@ Uncertainty of a point (1 sigma, absolute): a relative floor (:data:`PSI_FLOOR_R
 :data:`FORCE_FLOOR_REL`, of the value or of a fifth of the recording's largest value, whichever
 is larger), and for flux the bias of the branch mean of a rate-independent loop, second order in
 its current half-width h: ``|Psi''| h^2 / 2``, plus :data:`LOOP_ASYMMETRY` times the half-width
-(the first, virgin ascent is not symmetric to the descending branch).
+(the first, virgin ascent is not symmetric to the descending branch); below
+:data:`LOOP_NEAR_ORIGIN` half-widths of current the whole half-width (the descending branch ends at
+the remanence, so the mean there is biased to first order).
 
 Units: SI (A, m, Wb, N).
 """
@@ -36,7 +38,8 @@ from ..measure import campaign_resistance, commutation_curve, flux_linkage, peak
 from .measured import force_stroke_curve, groups_of
 
 __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
-           "flux_points", "force_points", "eddy_split", "resistance_choice", "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD"]
+           "flux_points", "force_points", "eddy_split", "resistance_choice",
+           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN"]
 
 #: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
 PSI_FLOOR_REL = 2e-3
@@ -48,6 +51,9 @@ LOOP_ASYMMETRY = 0.1
 KAPPA_SIGNIFICANT = 3.0
 #: Current rates must differ by this factor among the loops to tell eddy currents from hysteresis.
 EDDY_RATE_SPREAD = 2.0
+#: Below this many loop half-widths (in current) the branch mean is no estimate of the curve at all
+#: (the descending branch ends at the remanence): there the whole half-width counts as its uncertainty.
+LOOP_NEAR_ORIGIN = 3.0
 #: Positions taken from each force-stroke curve (evenly over the range passed both ways).
 FORCE_POSITIONS = 4
 
@@ -142,9 +148,11 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=()) -> tuple[list[Measu
     notes.append(note)
     points: list[MeasuredPoint] = []
     details = {}
+    # with several strokes fewer currents each: the strokes pin the curve together (FEM cost ~ points)
+    n_each = n_currents if len(ccs) == 1 else max(5, -(-2 * n_currents // (len(ccs) + 1)))
     for key, cc in sorted(ccs.items()):
         com_i, com_psi, half = _corrected_curve(cc, G)
-        i_sel, psi_sel = choose(com_i, com_psi, n_currents)
+        i_sel, psi_sel = choose(com_i, com_psi, n_each)
         half_w = np.interp(i_sel, com_i, half)
         slope = np.gradient(com_psi, com_i)
         curv = np.gradient(slope, com_i)
@@ -154,7 +162,8 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=()) -> tuple[list[Measu
         peak = float(np.max(np.abs(com_psi)))
         floor = PSI_FLOOR_REL * np.maximum(np.abs(psi_sel), 0.2 * peak)
         track = _track_sigma_rel(cc, camp) if heated else 0.0
-        sigma = np.sqrt(floor**2 + (track * np.abs(psi_sel)) ** 2 + (0.5 * d2 * h_i**2 + LOOP_ASYMMETRY * half_w) ** 2)
+        bias = np.where(i_sel >= LOOP_NEAR_ORIGIN * h_i, 0.5 * d2 * h_i**2 + LOOP_ASYMMETRY * half_w, half_w)
+        sigma = np.sqrt(floor**2 + (track * np.abs(psi_sel)) ** 2 + bias**2)
         x = cc.position_m
         names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))
         for i, p, s in zip(i_sel, psi_sel, sigma, strict=True):

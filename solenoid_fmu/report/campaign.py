@@ -33,8 +33,15 @@ def write_campaign_report(path, name, summary, ident, res, before) -> Path:
                   f"{ident.rms_before * 100:.3g} % with the start curve, {ident.rms_after * 100:.3g} % after; "
                   f"identified H range {s['identified_H_range_A_per_m'][0]:.3g} .. "
                   f"{s['identified_H_range_A_per_m'][1]:.3g} A/m; {s.get('fem_solves')} FEM solves, "
-                  f"{s.get('wall_time_s', 0):.0f} s."),
+                  f"{s.get('wall_time_s', 0):.0f} s."
+                  + "".join(f"\n{n}" for n in s.get("notes", []))
+                  + "".join(f"\nWARNING: {w}" for w in s.get("warnings", []))),
          "figures": ident_figs},
+        {"heading": "B(H) identification: prediction of points held out of the fit (paper figs. 16-17)",
+         "text": (f"Chosen by held-out prediction: {s.get('chosen', 'n/a')}. Each group of measured points (a "
+                  "stroke's flux, a band of currents, a force-stroke recording) is predicted by the fit without it; "
+                  "errors in % of the measured values (flux: of the stroke's peak)."),
+         "table": held_out_table(s)},
         {"heading": "Eddy currents",
          "text": "No eddy recording." if summary["eddy"] is None else
          f"G_eddy = {summary['eddy']['G_model_S'] * 1e3:.4g} mS. {summary['eddy'].get('message', '')}"},
@@ -70,3 +77,11 @@ def summary_table(summary) -> dict:
         a = sum(v[1] for v in vals) / len(vals)
         rows.append([sig, len(vals), b, a, a / b if b else None])
     return {"columns": ["signal", "recordings", "mean NRMSE (full scale) before", "after", "ratio"], "rows": rows}
+
+
+def held_out_table(ident_summary) -> dict:
+    """The identification's held-out errors per group of points (``identification.json`` ``held_out``)."""
+    rows = [[r["kind"], r["group"], ", ".join(f"{v:g}" for v in r["x_mm"]), ", ".join(f"{v:g}" for v in r["i_A"]),
+             r["rms_in_pct"], r["rms_held_out_pct"], r["max_held_out_pct"]] for r in ident_summary.get("held_out", [])]
+    return {"columns": ["kind", "group", "x [mm]", "i [A]", "RMS in fit [%]", "RMS held out [%]", "max held out [%]"],
+            "rows": rows}

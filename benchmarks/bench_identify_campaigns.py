@@ -1,0 +1,63 @@
+"""B(H) identification on campaigns from other rigs: accuracy against truths it was not tuned to, and wall time.
+
+The twelve campaigns of ``tests/test_identify_campaigns.py`` (seven published steels, five random ones;
+none / heating / eddy ladder / hysteresis / heating + hysteresis on randomized protocols; truth maps from
+a finer, per-stroke mesh). Prints, per campaign, the largest relative error of Psi and F over 4 strokes x
+5 currents (0.25-2 A) for the literature curve (no identification, the baseline of this run) and for
+the identified curve, the stage the held-out prediction chose, and the identification's wall time.
+
+Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N]`` (first N campaigns;
+about 1 min each on 2 cores).
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from test_identify_campaigns import CAMPAIGNS, SAMPLES  # noqa: E402
+from truthsteels import prediction_errors, truth_dir  # noqa: E402
+
+from solenoid_fmu.field import load_material  # noqa: E402
+from solenoid_fmu.identification import identify_from_recordings  # noqa: E402
+from solenoid_fmu.realtime import load_tables  # noqa: E402
+from solenoid_fmu.rig.protocols import random_campaign  # noqa: E402
+
+
+def main(n: int | None = None) -> list[dict]:
+    rows = []
+    literature = load_material()
+    print(f"{'campaign':36s} {'literature Psi':>14s} {'F':>7s} {'identified Psi':>15s} {'F':>7s}  chosen"
+          f"{'':14s} wall [s]")
+    for name, effects, seed in CAMPAIGNS[:n]:
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp) / "campaign"
+            random_campaign(load_tables(truth_dir(name)), folder, effects, seed=seed, max_samples=SAMPLES)
+            t0 = time.perf_counter()
+            res = identify_from_recordings(sorted((folder / "recordings").glob("*.csv")), progress=False)
+            wall = time.perf_counter() - t0
+        before = prediction_errors(literature, name)
+        after = prediction_errors(res.curve, name)
+        row = {"campaign": f"{name} {effects or 'none'} #{seed}", "lit_psi": before["psi_max_rel"],
+               "lit_F": before["F_max_rel"], "psi": after["psi_max_rel"], "F": after["F_max_rel"],
+               "chosen": res.extra.get("chosen", ""), "wall_s": wall}
+        rows.append(row)
+        print(f"{row['campaign']:36s} {row['lit_psi'] * 100:13.2f}% {row['lit_F'] * 100:6.2f}% "
+              f"{row['psi'] * 100:14.2f}% {row['F'] * 100:6.2f}%  {row['chosen']:20s} {wall:7.1f}", flush=True)
+    worst_psi = max(r["psi"] for r in rows)
+    worst_F = max(r["F"] for r in rows)
+    walls = sorted(r["wall_s"] for r in rows)
+    print(f"worst over {len(rows)} campaigns: Psi {worst_psi * 100:.2f} % (goal 1 %), F {worst_F * 100:.2f} % "
+          f"(goal 2 %); literature curve: Psi {max(r['lit_psi'] for r in rows) * 100:.1f} %, "
+          f"F {max(r['lit_F'] for r in rows) * 100:.1f} %")
+    print(f"identification wall time: median {walls[len(walls) // 2]:.0f} s, max {walls[-1]:.0f} s (goal < 60 s)")
+    return rows
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else None)
