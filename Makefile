@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 # wine64 (runs the win64 host test), cmake (builds the FMU's sources/). Installed only when missing and
 # when root (as in CI; ~25 s on a fresh machine, measured: README); otherwise says what is missing and
 # the tests that need them skip naming the package.
-SYSTEM_PACKAGES := gcc-mingw-w64-x86-64-win32 wine64 cmake
+SYSTEM_PACKAGES := gcc-mingw-w64-x86-64-win32 wine64 cmake chromium
 
 setup-system:
 	@missing=$$(for p in $(SYSTEM_PACKAGES); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null \
