@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
+import contextlib
 import json
 import math
 from pathlib import Path
@@ -12,13 +12,13 @@ import numpy as np
 
 from ..errors import MapsError
 from ..field import load_geometry, load_material
-from ..fileio import refuse_overwriting_inputs, require_directory
+from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
 from ..realtime import MAPS_JSON, MAPS_NPZ
 from .eddy import fit_eddy
 from .export import DERIVED_FILES, DERIVED_PLOTS, export_combitable2d, export_mat, remove_stale_exports
 from .io import load_maps, name_problem, save_maps
 from .plots import plot_maps
-from .sweep import MAX_GRID_POINTS, InlineExecutor, build_maps
+from .sweep import MAX_GRID_POINTS, InlineExecutor, build_maps, process_pool
 
 __all__ = ["add_cli", "parse_range"]
 
@@ -139,6 +139,13 @@ def _output_plot_dir(plot_dir, inputs) -> Path:
 
 
 def _maps_cli(args) -> int:
+    with contextlib.ExitStack() as stack:
+        if args.output is not None and args.source is None:  # one writer per map directory, before any work
+            stack.enter_context(dir_lock(_output_map_dir(args.output, [args.geometry, args.material])))
+        return _maps_run(args)
+
+
+def _maps_run(args) -> int:
     if args.plot:  # checked before any work, not after the sweep
         source = [] if args.source is None else [Path(args.source) / n for n in (MAPS_NPZ, MAPS_JSON)]
         _output_plot_dir(args.plot, [args.geometry, args.material, *source])
@@ -170,7 +177,7 @@ def _maps_cli(args) -> int:
         if args.workers == 1:
             executor = InlineExecutor()
         elif args.workers is not None:
-            executor = cf.ProcessPoolExecutor(max_workers=args.workers)
+            executor = process_pool(args.workers)
         try:
             maps = build_maps(geometry, material, x_m=x_m, i_A=i_A, mesh_size=args.mesh_size,
                               executor=executor, progress=not args.quiet, name=directory.name)
