@@ -55,6 +55,16 @@ def resolved(path) -> Path:
         raise
 
 
+def check_output_name(path) -> Path:
+    """``path`` as a Path, unless its file name has a control character (a line break, a tab ...): such a
+    name would travel into recording headers, FMU names and logs, so it is refused before any work."""
+    path = Path(path)
+    if any(ord(ch) < 32 or ord(ch) == 127 for ch in path.name):
+        raise OutputError(f"{str(path)!r}: the output's file name has a control character (line break, tab ...); "
+                          "give a name without one")
+    return path
+
+
 def write_failure(path, exc: OSError) -> OutputError:
     """The one-line error of a write to ``path`` that failed with ``exc`` (the earlier file is kept)."""
     reason = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
@@ -118,7 +128,7 @@ def refuse_overwriting_inputs(output, inputs, written=None) -> Path:
     i.e. everything under an output directory; ``[]`` checks ``output`` alone), and ``output`` must
     not lie inside an input directory (results would mix with, and be read back as, the inputs).
     A result must never replace the measured data it came from."""
-    out = Path(output)
+    out = check_output_name(output)
     target = resolved(out)
     targets = [target] if written is None else [resolved(w) for w in written]
     for item in inputs:
@@ -176,7 +186,7 @@ def temp_beside(path: str | Path, suffix: str = ".tmp") -> Iterator[Path]:
             os.chmod(tmp, 0o666 & ~umask())
             os.replace(tmp, path)
         except OSError as exc:
-            if exc.errno in _WRITE_ERRNOS:
+            if exc.errno in WRITE_ERRNOS:
                 raise write_failure(path, exc) from None
             raise
     finally:
@@ -184,7 +194,7 @@ def temp_beside(path: str | Path, suffix: str = ".tmp") -> Iterator[Path]:
 
 
 #: errno values of a write that failed for want of room or rights (reported by write_failure).
-_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO}
+WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO}
 
 
 def save_figure(fig, path, **savefig_kw) -> Path:

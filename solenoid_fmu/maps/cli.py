@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..argtypes import number
 from ..errors import MapsError
-from ..field import load_geometry, load_material
+from ..field import MIN_MESH_SIZE, load_geometry, load_material
 from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
 from ..realtime import MAPS_JSON, MAPS_NPZ
 from .eddy import fit_eddy
@@ -66,16 +67,6 @@ def _positive_int(text: str) -> int:
     return n
 
 
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
-    return v
-
-
 def add_cli(subparsers) -> None:
     """Register ``solenoid-fmu maps`` (``eddy`` comes later in the help: :func:`add_eddy_cli`)."""
     _add_maps_cli(subparsers)
@@ -107,7 +98,7 @@ def _add_maps_cli(subparsers) -> None:
     p.add_argument("--i-A", metavar="START:STOP:N", type=lambda t: parse_range(t, "--i-A"),
                    help="evenly spaced currents in A, START must be 0 (default: 0 to 1.25 x max "
                         "current, 26 currents, denser at low currents)")
-    p.add_argument("--mesh-size", metavar="H", type=_positive_float, default=1.0,
+    p.add_argument("--mesh-size", metavar="H", type=number(MIN_MESH_SIZE), default=1.0,
                    help="mesh-size factor (default 1.0; larger is coarser)")
     p.add_argument("--workers", metavar="N", type=_positive_int, default=None,
                    help="parallel processes (default: all cores; 1 runs in this process)")

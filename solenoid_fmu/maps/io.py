@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MapsError
-from ..fileio import atomic_write_bytes, dir_lock, write_failure
+from ..fileio import OutputError, atomic_write_bytes, dir_lock, write_failure
 from ..realtime import (
     MAPS_JSON,
     MAPS_NPZ,
@@ -101,7 +101,11 @@ def _commit_pair(directory: Path, npz: bytes, sidecar: bytes) -> None:
     previous, building = directory / MAPS_PREVIOUS, directory / f"{MAPS_PREVIOUS}.tmp"
     try:
         for name, data in ((MAPS_NPZ, npz), (MAPS_JSON, sidecar)):
-            atomic_write_bytes(staged[name], data)
+            try:
+                atomic_write_bytes(staged[name], data)
+            except OutputError:  # name the file of the set, not its hidden staging copy
+                raise OutputError(f"{directory / name}: cannot write (no space, quota or rights); the earlier "
+                                  "maps are unchanged") from None
         if maps_pair_consistent(directory):  # keep the earlier whole pair until the new one is in place
             shutil.rmtree(building, ignore_errors=True)
             building.mkdir()

@@ -29,12 +29,14 @@ from .format import (
     mm_column_to_m,
 )
 
-__all__ = ["MAX_LISTED_PROBLEMS", "MAX_GAP_PERIODS", "read_recording", "validate_recording"]
+__all__ = ["MAX_LISTED_PROBLEMS", "MAX_GAP_PERIODS", "MIN_TIME_STEP_S", "read_recording", "validate_recording"]
 
 #: Row-level problems listed before the rest is summarised as "... and N more".
 MAX_LISTED_PROBLEMS = 20
 #: A time step larger than this many median sample periods is a gap in the acquisition (an error).
 MAX_GAP_PERIODS = 1000
+#: Shortest time step [s] accepted (1 GHz): shorter ones are no acquisition and overflow rates (dU/dt, 1/dt).
+MIN_TIME_STEP_S = 1e-9
 
 
 _NONFINITE_RE = re.compile(r"[ \t]*[+-]?(?:nan|inf|infinity)[ \t]*\Z", re.IGNORECASE)
@@ -297,12 +299,16 @@ def _check_time(t: np.ndarray, rows: np.ndarray, first_line: int, probs: _Proble
     ok = np.isfinite(t)
     t, rows = t[ok], rows[ok]
     for k in np.flatnonzero(np.diff(t) <= 0).tolist():
-        prev, cur = t[k], t[k + 1]
+        prev, cur = float(t[k]), float(t[k + 1])  # Python floats: no np.float64(...) in the message
         why = "duplicate time" if cur == prev else "time goes backwards"
         probs.add_row(first_line + int(rows[k + 1]),
                       f"{why}: time_s {cur!r} after {prev!r} on line {first_line + int(rows[k])} "
                       "(time must be strictly increasing)")
     dt = np.diff(t)
+    for k in np.flatnonzero((dt > 0) & (dt < MIN_TIME_STEP_S)).tolist()[:MAX_LISTED_PROBLEMS]:
+        probs.add_row(first_line + int(rows[k + 1]),
+                      f"time step of {float(dt[k])!r} s before this sample is below {MIN_TIME_STEP_S:g} s "
+                      "(a sample rate above 1 GHz): not an acquisition this format holds")
     if dt.size >= 2:
         period = float(np.median(dt))
         for k in np.flatnonzero(dt > MAX_GAP_PERIODS * period).tolist()[:MAX_LISTED_PROBLEMS]:
