@@ -234,3 +234,51 @@ def test_a_read_only_folder_is_named_not_its_hidden_temporary_file(tmp_path):
         tempfile.mkstemp = real
     assert str(exc.value) == f"{tmp_path / 'x.csv'}: cannot write: permission denied; an earlier file of that name " \
                              "is unchanged"
+
+
+# -- item 13: maps that contradict themselves ---------------------------------------------------------
+def _write_raw(directory, arrays, sidecar):
+    """A map set written without the package's writer: npz and the sidecar's sha256 and shapes."""
+    import hashlib
+    import io
+
+    directory.mkdir()
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    meta = json.loads(sidecar.read_text())
+    meta["arrays"] = {"file": "maps.npz", "sha256": hashlib.sha256(buf.getvalue()).hexdigest(),
+                      "shapes": {k: list(v.shape) for k, v in arrays.items()}}
+    (directory / "maps.npz").write_bytes(buf.getvalue())
+    (directory / "maps.json").write_text(json.dumps(meta))
+
+def test_maps_that_contradict_themselves_are_refused_by_load_and_export(work, tmp_path):
+    from solenoid_fmu.errors import MapsError
+    from solenoid_fmu.maps import load_maps, save_maps
+
+    good = load_maps(work["maps"])
+    a = good.arrays()
+    corrupt = {
+        "i_f_x10": ({"i_f_A": a["i_f_A"] * 10}, "i_f_A does not invert psi_ix_Wb"),
+        "force_negative": ({"force_ix_N": -a["force_ix_N"], "force_stress_ix_N": -a["force_stress_ix_N"],
+                            "force_N": -a["force_N"]}, "force_ix_N is negative"),
+        "opposite_signs": ({"force_N": -a["force_N"]}, "force_N is negative"),
+        "two_flux_points": ({k: a[k][:2] for k in ("psi_Wb", "i_f_A", "force_N", "extrapolated")},
+                            "psi_Wb needs at least 3 points, has 2"),
+    }
+    cases = []
+    for name, (change, _) in corrupt.items():
+        if name == "two_flux_points":  # CharacteristicMaps refuses it: written as another tool would
+            _write_raw(tmp_path / name, {**a, **change}, tmp_path / "i_f_x10" / "maps.json")
+        else:
+            save_maps(type(good)(**{**a, **change}, metadata=good.metadata), tmp_path / name)
+        cases.append(["export", tmp_path / name, "-o", tmp_path / f"{name}.fmu"])
+    for name, (_, message) in corrupt.items():
+        with pytest.raises(MapsError, match=message):
+            load_maps(tmp_path / name)
+    for res, (name, (_, message)) in zip(_cli_cases(cases), corrupt.items(), strict=True):
+        assert res["rc"] == 1 and message in res["err"] and "Traceback" not in res["err"], (name, res)
+        assert not (tmp_path / f"{name}.fmu").exists()
+    with pytest.raises(MapsError, match="force_N .F.Psi, x.. disagrees with force_ix_N"):  # same sign, 1.5 x
+        save_maps(type(good)(**{**a, "force_N": a["force_N"] * 1.5}, metadata=good.metadata), tmp_path / "f15")
+        load_maps(tmp_path / "f15")
+    assert load_maps(work["maps"]).shape == good.shape  # the fixture itself passes every rule

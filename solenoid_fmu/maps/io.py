@@ -32,6 +32,7 @@ from ..realtime import (
     maps_pair_consistent,
     read_maps_dir,
 )
+from .consistency import consistency_problems
 from .tables import ARRAY_UNITS, FORCE_METHODS, CharacteristicMaps, array_problems, problem_message
 
 __all__ = ["load_maps", "name_problem", "save_maps"]
@@ -206,8 +207,9 @@ def load_maps(directory) -> CharacteristicMaps:
     ------
     MapsError
         Naming the file and every problem: missing file, invalid JSON, wrong schema name or version,
-        missing arrays, wrong shapes, NaN/inf, non-monotone grids, wrong units, a npz that does not
-        belong to the sidecar.
+        missing arrays, wrong shapes, NaN/inf, non-monotone grids, fewer than 3 flux points, wrong units, a
+        npz that does not belong to the sidecar, and tables that contradict each other
+        (:mod:`solenoid_fmu.maps.consistency`: i_f not inverting Psi, negative force, F(Psi, x) not F(i, x)).
     """
     directory = Path(directory)
     if directory.is_file() and directory.name in (MAPS_NPZ, MAPS_JSON):
@@ -230,4 +232,8 @@ def load_maps(directory) -> CharacteristicMaps:
     if problems:
         raise MapsError(problem_message(str(npz_path), problems))
     metadata = {k: v for k, v in meta.items() if k not in ("schema", "schema_version", "arrays")}
-    return CharacteristicMaps(**arrays, metadata=metadata)
+    maps = CharacteristicMaps(**arrays, metadata=metadata)
+    problems = consistency_problems(maps)
+    if problems:
+        raise MapsError(problem_message(str(npz_path), problems))
+    return maps
