@@ -282,3 +282,66 @@ def test_maps_that_contradict_themselves_are_refused_by_load_and_export(work, tm
         save_maps(type(good)(**{**a, "force_N": a["force_N"] * 1.5}, metadata=good.metadata), tmp_path / "f15")
         load_maps(tmp_path / "f15")
     assert load_maps(work["maps"]).shape == good.shape  # the fixture itself passes every rule
+
+
+# -- item 12: recordings are read in blocks, and bounded ----------------------------------------------
+def _big_recording(path, n):
+    t = np.arange(n) * 1e-4
+    small = write_recording(path, make_recording("flux", "X", t[:2], np.zeros(2), voltage_V=np.zeros(2),
+                                                 position_m=1.5e-3, coil_resistance_ohm=12.0))
+    head = [ln for ln in small.read_text().splitlines() if ln.startswith("#") or ln.startswith("time_s")]
+    with open(path, "w") as fh:
+        fh.write("\n".join(head) + "\n")
+        cols = [t, np.sin(t), 0.5 * np.cos(t) + 0.5][: len(head[-1].split(","))]
+        np.savetxt(fh, np.column_stack(cols), fmt="%.7f", delimiter=",")
+    return path
+
+
+_PEAK = """
+import resource, sys
+from solenoid_fmu.measure import read_recording
+read_recording(sys.argv[1])
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+"""
+
+
+def test_reading_a_recording_peaks_at_a_small_multiple_of_its_size(tmp_path):
+    big, small = _big_recording(tmp_path / "big.csv", 800_000), _big_recording(tmp_path / "small.csv", 100)
+    peaks = []
+    for f in (small, big):
+        proc = subprocess.run([sys.executable, "-c", _PEAK, str(f)], capture_output=True, text=True, timeout=120,
+                              cwd=REPO)
+        assert proc.returncode == 0, proc.stderr[-1000:]
+        peaks.append(int(proc.stdout.split()[-1]))
+    size = big.stat().st_size
+    assert size > 20e6 and (peaks[1] - peaks[0]) < 2.5 * size + 40e6, (size, peaks)  # before: 10-12 x
+
+
+def test_blocks_read_the_same_recording_and_problems_as_the_whole_file(tmp_path, monkeypatch):
+    from solenoid_fmu.measure import read_recording, reader, validate_recording
+
+    good = _big_recording(tmp_path / "g.csv", 3000)
+    text = good.read_text().splitlines()
+    bad = tmp_path / "b.csv"
+    text[20] = text[20].replace(",", ";", 1)
+    text[2500] = "0.1," + text[2500].split(",", 1)[1]
+    bad.write_text("\n".join(text) + "\n\n\n")
+    whole = (read_recording(good), validate_recording(bad))
+    monkeypatch.setattr(reader, "CHUNK_BYTES", 200)  # ~6 rows per block
+    blocks = (read_recording(good), validate_recording(bad))
+    for name in ("time_s", "current_A", "voltage_V", "position_m"):
+        np.testing.assert_array_equal(getattr(blocks[0], name), getattr(whole[0], name), err_msg=name)
+    assert blocks[1] == whole[1] and len(whole[1]) >= 2 and ":21: ragged row" in whole[1][0], whole[1]
+
+
+def test_a_recording_over_the_size_limit_is_refused_before_it_is_read(tmp_path):
+    from solenoid_fmu.measure import reader
+
+    huge = tmp_path / "huge.csv"
+    with open(huge, "wb") as fh:  # sparse: no disk used
+        fh.truncate(reader.MAX_RECORDING_BYTES + 1)
+    t0 = time.perf_counter()
+    res = _cli_cases([["flux", huge], ["check-recording", huge]])
+    assert time.perf_counter() - t0 < 20
+    assert "more than the 100 MB a recording may have (split it into several recordings)" in res[0]["err"]
+    assert res[1]["rc"] == 1 and "more than the 100 MB" in res[1]["out"] + res[1]["err"]
