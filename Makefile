@@ -12,11 +12,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q -e '.[test]'
 	touch $(STAMP)
 
-# Debian packages of the native FMU's tests: mingw-w64's win64 cross compiler (the FMU's win64 binary),
-# wine64 (runs the win64 host test), cmake (builds the FMU's sources/). Installed only when missing and
-# when root (as in CI; ~25 s on a fresh machine, measured: README); otherwise says what is missing and
-# the tests that need them skip naming the package.
-SYSTEM_PACKAGES := gcc-mingw-w64-x86-64-win32 wine64 cmake
+# Debian packages of the tests: mingw-w64's win64 cross compiler (the FMU's win64 binary), wine64 (runs
+# the win64 host test), cmake (builds the FMU's sources/), chromium (renders report.html in the browser
+# test; 18 s more). Installed only when missing and when root (as in CI; measured: README); otherwise
+# says what is missing and the tests that need them skip naming the package.
+SYSTEM_PACKAGES := gcc-mingw-w64-x86-64-win32 wine64 cmake chromium
 
 setup-system:
 	@missing=$$(for p in $(SYSTEM_PACKAGES); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null \

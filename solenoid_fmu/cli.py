@@ -84,9 +84,15 @@ def main(argv: list[str] | None = None) -> int:
     except (FileExistsError, NotADirectoryError) as exc:
         print(f"error: {_not_a_directory(exc.filename2 or exc.filename, exc.strerror)}", file=sys.stderr)
         return 1
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+    except OSError as exc:  # a file that cannot be read or written (missing, rights, full disk, link loop)
         # os.replace(temporary, destination) names the destination second: report that one
-        print(f"error: {exc.strerror}: {exc.filename2 or exc.filename}", file=sys.stderr)
+        where = exc.filename2 or exc.filename
+        print(f"error: {exc.strerror or exc}" + (f": {where}" if where else ""), file=sys.stderr)
+        return 1
+    except RuntimeError as exc:
+        if not str(exc).startswith("Symlink loop"):  # pathlib's resolve() on a link loop (Python < 3.13)
+            raise
+        print(f"error: {exc}: a link that points back to itself; give another path", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -30,14 +30,19 @@ words ``diagnose`` uses), ``errors`` (one row per recording and signal: RMS erro
 the diagnosis, the identification summary and the wall time of every step.
 
 Outputs are written to fresh files (atomic writes); a failing step stops the pipeline with its
-error and leaves the results of the steps before it in place.
+error and leaves the results of the steps before it in place. Only one pipeline writes a folder at a time
+(a lock; a second is refused). From its start until ``summary.json`` is written, the folder holds
+``pipeline.incomplete`` (:data:`INCOMPLETE_MARKER`) and no ``summary.json`` or ``report.html``: a run that
+was interrupted or failed over an earlier complete one leaves a folder that says it is mixed
+(:func:`pipeline_incomplete`); a folder with ``summary.json`` and no marker is one complete run.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
+import argparse
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -46,7 +51,7 @@ import numpy as np
 
 from .errors import SolenoidError
 from .field import load_geometry
-from .fileio import atomic_write_text, jsonable, refuse_overwriting_inputs, require_directory
+from .fileio import atomic_write_text, dir_lock, jsonable, refuse_overwriting_inputs, require_directory
 from .fmu import build_fmu
 from .identification import identify_from_recordings
 from .loop import effects_summary_lines, heating_corrected, improve, tables_from_fmu
@@ -60,6 +65,7 @@ from .maps import (
     fit_eddy,
     load_maps,
     name_problem,
+    process_pool,
     save_maps,
 )
 from .measure import read_recording, write_recording
@@ -148,10 +154,47 @@ def _output_dir(folder, out_dir) -> Path:
     return out
 
 
+#: Present in a pipeline's output folder from the start of a run until its summary.json is written.
+INCOMPLETE_MARKER = "pipeline.incomplete"
+
+
+def pipeline_incomplete(out_dir) -> str | None:
+    """Why the pipeline output folder ``out_dir`` is not one complete run (None if it is)."""
+    marker = Path(out_dir) / INCOMPLETE_MARKER
+    if marker.exists():
+        return (f"{out_dir}: incomplete: a pipeline run started there did not finish ({marker}); its files mix that "
+                "run's and an earlier one's: run the pipeline again")
+    return None
+
+
 def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
                  progress=_progress) -> dict:
-    """Run the main job (module docstring) and return the summary dict (also in ``summary.json``)."""
+    """Run the main job (module docstring) and return the summary dict (also in ``summary.json``).
 
+    Every argument is checked before any work; the output folder is locked for the run and marked
+    incomplete (:data:`INCOMPLETE_MARKER`, the earlier ``summary.json`` and ``report.html`` removed) until
+    the new ``summary.json`` is written."""
+    if preset not in PRESETS:
+        raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise PipelineError(f"workers must be a whole number >= 1, got {workers!r}")
+    out = _output_dir(folder, out_dir)
+    with dir_lock(out):
+        marker = {"campaign": str(folder), "pid": os.getpid(), "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ",
+                                                                                          time.gmtime()),
+                  "note": "pipeline run incomplete until summary.json is written; the folder may mix this run's "
+                          "files with an earlier run's"}
+        atomic_write_text(out / INCOMPLETE_MARKER, json.dumps(marker, indent=1) + "\n")
+        for name in ("summary.json", "report.html"):
+            (out / name).unlink(missing_ok=True)
+        summary = _run_pipeline(folder, out_dir, geometry=geometry, preset=preset, workers=workers,
+                                progress=progress)
+        (out / INCOMPLETE_MARKER).unlink()
+    return summary
+
+
+def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
+                  progress=_progress) -> dict:
     if preset not in PRESETS:
         raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
     cfg = PRESETS[preset]
@@ -196,7 +239,7 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         x_m, i_A = _maps_grid(cfg, geom, recs)
         say(f"   currents 0 .. {i_A[-1]:.4g} A ({len(i_A)}): 1.25 x the larger of the rated current and the "
             "campaign's largest |current|")
-        executor = InlineExecutor() if workers == 1 else cf.ProcessPoolExecutor(max_workers=workers)
+        executor = InlineExecutor() if workers == 1 else process_pool(workers)
         try:
             maps = build_maps(geom, ident.curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"], executor=executor,
                               progress=progress is not None, name=f"{name}-identified")
@@ -295,9 +338,19 @@ def add_cli(sub) -> None:
     p.add_argument("--geometry", help="geometry TOML (default: the packaged PS45)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="full",
                    help="FEM grid quality: full (default) or quick (coarse, for checks)")
-    p.add_argument("--workers", type=int, help="processes for the maps sweep (default: all cores)")
+    p.add_argument("--workers", type=_workers, help="processes for the maps sweep (default: all cores)")
     p.add_argument("--json", action="store_true", help="print summary.json's content on stdout")
     p.set_defaults(func=_cli)
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return n
 
 
 def _cli(args) -> int:

@@ -18,7 +18,7 @@ PKG = Path(__file__).resolve().parents[1] / "solenoid_fmu"
 
 #: Layer of each unit, lowest first: the data flow of the README's package map.
 LAYERS = {
-    "errors": 0,
+    "errors": 0, "argtypes": 0,
     "fileio": 1, "realtime": 1,
     "field": 2, "measure": 2,
     "identification": 3, "maps": 3,

@@ -6,6 +6,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from ..errors import SolverError
+
 __all__ = ["SPDSolver", "LINEAR_SOLVER", "BACKENDS"]
 
 
@@ -39,6 +41,19 @@ class SPDSolver:
             self._analysed = False
 
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """The solution of K x = b; :class:`SolverError` (one line) when K or b is not finite or the
+        factorization fails (e.g. a current so large that the stiffness overflows)."""
+        if not (np.all(np.isfinite(b)) and np.all(np.isfinite(data))):
+            raise SolverError("the FEM system is not finite (current or field beyond floating point range)")
+        try:
+            return self._solve(data, indices, indptr, b)
+        except SolverError:
+            raise
+        except Exception as exc:  # PyPardisoError, SuperLU's RuntimeError: a failed factorization
+            raise SolverError(f"the linear solver ({self.backend}) failed: {type(exc).__name__}: "
+                              f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+
+    def _solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
         if self._ps is None:
             K = sp.csc_matrix((data, indices, indptr), shape=(self.n, self.n))  # symmetric: CSR = CSC^T
             lu = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})

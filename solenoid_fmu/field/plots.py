@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fileio import save_figure
 from .fem import Solution, Solver
 
 __all__ = ["plot_field"]
@@ -46,5 +47,5 @@ def plot_field(solver: Solver, sol: Solution, path, n_lines: int = 30) -> None:
         f"Psi = {sol.psi_Wb * 1e3:.2f} mWb, F = {sol.force_N:.2f} N"
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)

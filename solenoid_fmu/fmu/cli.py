@@ -10,6 +10,7 @@ import sysconfig
 import zipfile
 from pathlib import Path
 
+from ..argtypes import number
 from ..errors import FmuInputError
 from ..fileio import refuse_overwriting_inputs
 from ..measure import write_recording
@@ -56,9 +57,9 @@ def add_cli(subparsers) -> None:
     s.add_argument("--drive", choices=("auto", "voltage", "current"), default="auto",
                    help="auto: voltage-driven for voltage_step, current-driven for flux, force_stroke, "
                         "ramp, eddy")
-    s.add_argument("--R-ohm", dest="R_ohm", type=float,
+    s.add_argument("--R-ohm", dest="R_ohm", type=number(0.0, lo_open=True),
                    help="coil resistance [ohm] (default: the recording's header, else the FMU's)")
-    s.add_argument("--G-eddy-S", dest="G_eddy_S", type=float, help="eddy-current conductance [S]")
+    s.add_argument("--G-eddy-S", dest="G_eddy_S", type=number(0.0), help="eddy-current conductance [S]")
     s.set_defaults(func=_cmd_simulate)
 
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import FmuBuildError, MapsError
-from ..fileio import umask
+from ..fileio import WRITE_ERRNOS, check_output_name, umask, write_failure
 from ..maps import load_maps
 from ..realtime import MapTables, ModelMapsError, load_tables
 from .model_description import BackendDescription, finalize_model_description
@@ -122,7 +122,7 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
         Unknown backend or interface, exporter failure, or validation problems (all listed).
     """
     maps_dir = Path(maps_dir)
-    dest = Path(dest_fmu)
+    dest = check_output_name(dest_fmu)
     if backend not in BACKENDS:
         raise FmuBuildError(f"unknown FMU backend {backend!r}; available: {', '.join(BACKENDS)}")
     spec = BACKENDS[backend]
@@ -137,8 +137,13 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
     if dest.suffix.lower() != ".fmu":
         raise FmuBuildError(f"{dest}: the output file must end in .fmu")
     tables = load_maps_tables(maps_dir)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=".fmu", dir=dest.parent)
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=".fmu", dir=dest.parent)
+    except (FileExistsError, NotADirectoryError):
+        raise
+    except OSError as exc:  # a read-only or full folder: name the FMU, not the hidden temporary file
+        raise write_failure(dest, exc) from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -156,6 +161,10 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
                                     + "\n".join(f"  - {p}" for p in problems))
         os.chmod(tmp, 0o666 & ~umask())  # the mode open() would give, not mkstemp's private 0600
         os.replace(tmp, dest)
+    except OSError as exc:
+        if exc.errno not in WRITE_ERRNOS:
+            raise
+        raise write_failure(dest, exc) from None
     finally:
         if tmp.exists():
             tmp.unlink()

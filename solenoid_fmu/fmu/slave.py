@@ -7,10 +7,19 @@ variables of :mod:`solenoid_fmu.fmu.interface`. The python backend
 ``solenoid_model_<hash>.py`` shipped beside it, the interface table by literals. The class name is
 the FMU's modelIdentifier (pythonfmu takes it from the class).
 
-It raises into the pythonfmu C wrapper (which turns any exception into fmi2Fatal) only in
-setFMUstate, for a state that is not one of this FMU's (bad bytes or JSON): the wrapper has no
-other way to refuse, and OK would hide it; the previous state is kept and the log names the
-reason. Invalid inputs are logged with status error and fmi2DoStep returns fmi2Discard.
+It raises into the pythonfmu C wrapper (which turns any exception into fmi2Fatal) only to refuse a
+call: setFMUstate of a state that is not one of this FMU's (bad bytes or JSON), get/set of a value
+reference this FMU does not have (or of another type), and a fixed parameter (``drive_mode``,
+``Psi0_Wb``, ``h_sub_max_s``) set after initialization. The wrapper has no other way to refuse, and OK
+would hide it; nothing is changed and the log names the reason. Invalid inputs are logged with status
+error and fmi2DoStep returns fmi2Discard.
+
+pythonfmu 0.7's wrapper releases the slave class, the slave and its log queue once per exception it
+handles (``handle_py_exception`` -> ``cleanPyObject``: ``Py_XDECREF`` of references it does not give
+up), so after a few refused calls the log queue was freed and the next ``clearLogBuffer`` crashed the
+host. :func:`_refuse` keeps one extra reference to each of the three per exception raised into the
+wrapper (:data:`_WRAPPER_REFS`), which those releases consume (upstream report:
+``docs/upstream-pythonfmu.md``).
 """
 
 import json
@@ -28,6 +37,17 @@ _FX_TUNABLE = tuple(v.name for v in EFFECT_VARIABLES if v.variability == "tunabl
 #: Layout of the serialized FMU state of this slave (JSON).
 _STATE_LAYOUT = 1
 _TABLES = {}
+#: One reference to the slave class, the slave and its log queue per exception raised into pythonfmu's
+#: C wrapper, which releases each of them once per exception (module docstring).
+_WRAPPER_REFS = []
+
+
+def _refuse(slave, message):
+    """Log ``message`` as an error and raise into the C wrapper (fmi2Fatal), compensating the references
+    the wrapper releases when it handles the exception."""
+    slave.log(message, Fmi2Status.error)
+    _WRAPPER_REFS.extend((type(slave), slave, slave.log_queue))
+    raise RuntimeError(message)
 
 
 def _tables_for(resources):
@@ -89,6 +109,52 @@ class SolenoidFmu(Fmi2Slave):
     def _set_param(self, name, value):
         setattr(self, name, value)
         self._dirty = True
+
+    def _vars_of(self, call, vrs, kind, setting=False):
+        """The variables of ``vrs`` (all checked before any is read or set), else refused: an unknown value
+        reference, one of another type, or (``setting``) a fixed parameter after initialization."""
+        out = []
+        for vr in vrs:
+            var = self.vars.get(vr)
+            if var is None:
+                _refuse(self, f"{call}: no variable with value reference {vr}; nothing {'set' if setting else 'read'}")
+            if not isinstance(var, kind):
+                _refuse(self, f"{call}: {var.name} (value reference {vr}) is not of type {kind.__name__}")
+            if setting and self._ready and var.name in self._params and var.name not in self._tunable:
+                _refuse(self, f"{call}: {var.name} is a fixed parameter, not settable after initialization "
+                              "(it keeps its value; instantiate anew or reset to change it)")
+            if setting and var.setter is None:
+                _refuse(self, f"{call}: {var.name} is an output, not settable")
+            out.append(var)
+        return out
+
+    def get_real(self, vrs):
+        return [float(v.getter()) for v in self._vars_of("fmi2GetReal", vrs, Real)]
+
+    def get_integer(self, vrs):
+        return [int(v.getter()) for v in self._vars_of("fmi2GetInteger", vrs, Integer)]
+
+    def get_boolean(self, vrs):
+        return [bool(v.getter()) for v in self._vars_of("fmi2GetBoolean", vrs, Boolean)]
+
+    def get_string(self, vrs):
+        _refuse(self, "fmi2GetString: this FMU has no String variables") if vrs else None
+        return []
+
+    def set_real(self, vrs, values):
+        for var, value in zip(self._vars_of("fmi2SetReal", vrs, Real, True), values, strict=True):
+            var.setter(value)
+
+    def set_integer(self, vrs, values):
+        for var, value in zip(self._vars_of("fmi2SetInteger", vrs, Integer, True), values, strict=True):
+            var.setter(value)
+
+    def set_boolean(self, vrs, values):
+        for var, value in zip(self._vars_of("fmi2SetBoolean", vrs, Boolean, True), values, strict=True):
+            var.setter(value)
+
+    def set_string(self, vrs, values):
+        _refuse(self, "fmi2SetString: this FMU has no String variables") if vrs else None
 
     def _apply_params(self, all_params):
         self._dirty = True
@@ -170,9 +236,7 @@ class SolenoidFmu(Fmi2Slave):
             self._restore(state)
         except Exception as exc:  # noqa: BLE001
             self._restore(keep)
-            self.log(f"setFMUstate: state not restored, the previous one kept: {type(exc).__name__}: {exc}",
-                     Fmi2Status.error)
-            raise RuntimeError("setFMUstate refused") from None
+            _refuse(self, f"setFMUstate: state not restored, the previous one kept: {type(exc).__name__}: {exc}")
 
     def _restore(self, state):
         if not isinstance(state, dict) or "__invalid__" in state:

@@ -7,6 +7,7 @@ import math
 import sys
 from pathlib import Path
 
+from ..argtypes import integer, number
 from ..fileio import jsonable, refuse_overwriting_inputs, require_directory
 from .diagnosis import DEFAULT_THRESHOLD, diagnose
 from .improvement import DEFAULT_MAX_EFFECTS, DEFAULT_MIN_GAIN, effects_summary_lines, improve
@@ -74,7 +75,7 @@ def _cli_validate(args) -> int:
 def _add_diagnose(sub) -> None:
     p = sub.add_parser("diagnose", help="trace the FMU-vs-recording residual to the effect the model lacks")
     _fmu_and_recordings(p, "the FMU (solenoid-fmu export)")
-    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD,
+    p.add_argument("--threshold", type=number(0.0, 1.0), default=DEFAULT_THRESHOLD,
                    help=f"held-out explained share needed for a verdict (default {DEFAULT_THRESHOLD})")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cli_diagnose)
@@ -109,8 +110,8 @@ def _add_improve(sub) -> None:
     _fmu_and_recordings(p, "the FMU to improve (solenoid-fmu export)")
     p.add_argument("-o", "--output", required=True, help="the improved FMU to write")
     p.add_argument("--report", help="directory for figures and improve.json")
-    p.add_argument("--max-effects", type=int, default=DEFAULT_MAX_EFFECTS)
-    p.add_argument("--min-gain", type=float, default=DEFAULT_MIN_GAIN,
+    p.add_argument("--max-effects", type=integer(0), default=DEFAULT_MAX_EFFECTS)
+    p.add_argument("--min-gain", type=number(0.0, 1.0), default=DEFAULT_MIN_GAIN,
                    help="relative fall of the validation error an effect must bring (default 0.1)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cli_improve)

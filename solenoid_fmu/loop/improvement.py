@@ -47,7 +47,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..fileio import atomic_write_text, jsonable
+from ..fileio import atomic_write_text, check_output_name, jsonable
 from ..fmu import build_fmu, simulate_model
 from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
@@ -269,6 +269,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
         ``*_nrmse`` by the recording's range, ``*_nrmse_fs`` by the full scale per kind.
     """
     say = progress or (lambda msg: None)
+    check_output_name(out_fmu)  # before any simulation
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     if not recs:
         raise ImproveError("improve needs at least one recording")

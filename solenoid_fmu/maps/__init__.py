@@ -23,7 +23,15 @@ from .export import export_combitable2d, export_mat, read_combitable2d
 from .interpolate import force_at, force_psi_at, i_f_at, psi_at
 from .invert import invert_maps, round_trip_error
 from .io import load_maps, name_problem, save_maps
-from .sweep import DEFAULT_CURRENT_FACTOR, DEFAULT_NI, InlineExecutor, build_maps, default_currents, default_positions
+from .sweep import (
+    DEFAULT_CURRENT_FACTOR,
+    DEFAULT_NI,
+    InlineExecutor,
+    build_maps,
+    default_currents,
+    default_positions,
+    process_pool,
+)
 from .tables import CharacteristicMaps
 
 __all__ = [
@@ -46,6 +54,7 @@ __all__ = [
     "invert_maps",
     "load_maps",
     "name_problem",
+    "process_pool",
     "psi_at",
     "read_combitable2d",
     "rectangle_cycle",

@@ -3,22 +3,23 @@
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
+import contextlib
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from ..argtypes import number
 from ..errors import MapsError
-from ..field import load_geometry, load_material
-from ..fileio import refuse_overwriting_inputs, require_directory
+from ..field import MIN_MESH_SIZE, load_geometry, load_material
+from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
 from ..realtime import MAPS_JSON, MAPS_NPZ
 from .eddy import fit_eddy
 from .export import DERIVED_FILES, DERIVED_PLOTS, export_combitable2d, export_mat, remove_stale_exports
 from .io import load_maps, name_problem, save_maps
 from .plots import plot_maps
-from .sweep import MAX_GRID_POINTS, InlineExecutor, build_maps
+from .sweep import MAX_GRID_POINTS, InlineExecutor, build_maps, process_pool
 
 __all__ = ["add_cli", "parse_range"]
 
@@ -66,16 +67,6 @@ def _positive_int(text: str) -> int:
     return n
 
 
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
-    return v
-
-
 def add_cli(subparsers) -> None:
     """Register ``solenoid-fmu maps`` (``eddy`` comes later in the help: :func:`add_eddy_cli`)."""
     _add_maps_cli(subparsers)
@@ -107,7 +98,7 @@ def _add_maps_cli(subparsers) -> None:
     p.add_argument("--i-A", metavar="START:STOP:N", type=lambda t: parse_range(t, "--i-A"),
                    help="evenly spaced currents in A, START must be 0 (default: 0 to 1.25 x max "
                         "current, 26 currents, denser at low currents)")
-    p.add_argument("--mesh-size", metavar="H", type=_positive_float, default=1.0,
+    p.add_argument("--mesh-size", metavar="H", type=number(MIN_MESH_SIZE), default=1.0,
                    help="mesh-size factor (default 1.0; larger is coarser)")
     p.add_argument("--workers", metavar="N", type=_positive_int, default=None,
                    help="parallel processes (default: all cores; 1 runs in this process)")
@@ -139,6 +130,13 @@ def _output_plot_dir(plot_dir, inputs) -> Path:
 
 
 def _maps_cli(args) -> int:
+    with contextlib.ExitStack() as stack:
+        if args.output is not None and args.source is None:  # one writer per map directory, before any work
+            stack.enter_context(dir_lock(_output_map_dir(args.output, [args.geometry, args.material])))
+        return _maps_run(args)
+
+
+def _maps_run(args) -> int:
     if args.plot:  # checked before any work, not after the sweep
         source = [] if args.source is None else [Path(args.source) / n for n in (MAPS_NPZ, MAPS_JSON)]
         _output_plot_dir(args.plot, [args.geometry, args.material, *source])
@@ -170,7 +168,7 @@ def _maps_cli(args) -> int:
         if args.workers == 1:
             executor = InlineExecutor()
         elif args.workers is not None:
-            executor = cf.ProcessPoolExecutor(max_workers=args.workers)
+            executor = process_pool(args.workers)
         try:
             maps = build_maps(geometry, material, x_m=x_m, i_A=i_A, mesh_size=args.mesh_size,
                               executor=executor, progress=not args.quiet, name=directory.name)

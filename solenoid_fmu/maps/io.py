@@ -14,13 +14,25 @@ import hashlib
 import io
 import json
 import math
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import MapsError
-from ..fileio import atomic_write_bytes
-from ..realtime import MAPS_JSON, MAPS_NPZ, MAPS_SCHEMA, MAPS_SCHEMA_VERSION, ModelMapsError, read_maps_dir
+from ..fileio import OutputError, atomic_write_bytes, dir_lock, write_failure
+from ..realtime import (
+    MAPS_JSON,
+    MAPS_NPZ,
+    MAPS_PREVIOUS,
+    MAPS_SCHEMA,
+    MAPS_SCHEMA_VERSION,
+    ModelMapsError,
+    maps_pair_consistent,
+    read_maps_dir,
+)
+from .consistency import consistency_problems
 from .tables import ARRAY_UNITS, FORCE_METHODS, CharacteristicMaps, array_problems, problem_message
 
 __all__ = ["load_maps", "name_problem", "save_maps"]
@@ -29,9 +41,13 @@ __all__ = ["load_maps", "name_problem", "save_maps"]
 def save_maps(maps: CharacteristicMaps, directory) -> Path:
     """Write ``maps.npz`` + ``maps.json`` into ``directory`` (created) atomically; never pickle.
 
-    Each file is written under a temporary name in the same directory and renamed into place; the
-    sidecar records the npz file's sha256 (``"arrays"``) so a reader can tell a mismatched pair
-    (files without that entry, written by other tools in the shared format, are accepted).
+    The pair is written crash-safe: a reader sees the earlier pair or the new one, whole, whenever the
+    writer is killed. Both files are first written under temporary names (flushed); the earlier pair,
+    if whole, is kept as hard links in ``.maps-previous/`` (:data:`MAPS_PREVIOUS`); then ``maps.npz``
+    and ``maps.json`` are renamed into place and ``.maps-previous/`` is removed. The sidecar records the
+    npz file's sha256 (``"arrays"``): a reader that finds a mismatched pair (killed between the two
+    renames) reads ``.maps-previous/`` instead (:func:`solenoid_fmu.realtime.read_maps_dir`). The folder is
+    locked while written (:func:`solenoid_fmu.fileio.dir_lock`): a second writer is refused.
 
     Parameters
     ----------
@@ -62,9 +78,58 @@ def save_maps(maps: CharacteristicMaps, directory) -> Path:
     }
     meta.setdefault("name", directory.name)
     text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
-    atomic_write_bytes(directory / MAPS_NPZ, npz)
-    atomic_write_bytes(directory / MAPS_JSON, text.encode("utf-8"))
+    with dir_lock(directory):
+        _commit_pair(directory, npz, text.encode("utf-8"))
     return directory
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:  # pragma: no cover - platforms without directory fds
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(fd)
+
+
+def _commit_pair(directory: Path, npz: bytes, sidecar: bytes) -> None:
+    """Replace the pair in ``directory`` so that a reader sees the old or the new one whole (save_maps)."""
+    staged = {MAPS_NPZ: directory / f".{MAPS_NPZ}.new", MAPS_JSON: directory / f".{MAPS_JSON}.new"}
+    previous, building = directory / MAPS_PREVIOUS, directory / f"{MAPS_PREVIOUS}.tmp"
+    try:
+        for name, data in ((MAPS_NPZ, npz), (MAPS_JSON, sidecar)):
+            try:
+                atomic_write_bytes(staged[name], data)
+            except OutputError:  # name the file of the set, not its hidden staging copy
+                raise OutputError(f"{directory / name}: cannot write (no space, quota or rights); the earlier "
+                                  "maps are unchanged") from None
+        if maps_pair_consistent(directory):  # keep the earlier whole pair until the new one is in place
+            shutil.rmtree(building, ignore_errors=True)
+            building.mkdir()
+            for name in (MAPS_NPZ, MAPS_JSON):
+                try:
+                    os.link(directory / name, building / name)
+                except OSError:  # no hard links here: a copy
+                    shutil.copyfile(directory / name, building / name)
+            _fsync_dir(building)
+            shutil.rmtree(previous, ignore_errors=True)
+            os.replace(building, previous)
+            _fsync_dir(directory)
+        # a pair that is not whole (an earlier writer was killed) keeps the .maps-previous/ it has
+        os.replace(staged[MAPS_NPZ], directory / MAPS_NPZ)
+        os.replace(staged[MAPS_JSON], directory / MAPS_JSON)
+        _fsync_dir(directory)
+        shutil.rmtree(previous, ignore_errors=True)
+    except OSError as exc:
+        raise write_failure(directory / MAPS_NPZ, exc) from None
+    finally:
+        for p in staged.values():
+            p.unlink(missing_ok=True)
+        shutil.rmtree(building, ignore_errors=True)
 
 
 def name_problem(name) -> str | None:
@@ -142,8 +207,9 @@ def load_maps(directory) -> CharacteristicMaps:
     ------
     MapsError
         Naming the file and every problem: missing file, invalid JSON, wrong schema name or version,
-        missing arrays, wrong shapes, NaN/inf, non-monotone grids, wrong units, a npz that does not
-        belong to the sidecar.
+        missing arrays, wrong shapes, NaN/inf, non-monotone grids, fewer than 3 flux points, wrong units, a
+        npz that does not belong to the sidecar, and tables that contradict each other
+        (:mod:`solenoid_fmu.maps.consistency`: i_f not inverting Psi, negative force, F(Psi, x) not F(i, x)).
     """
     directory = Path(directory)
     if directory.is_file() and directory.name in (MAPS_NPZ, MAPS_JSON):
@@ -166,4 +232,8 @@ def load_maps(directory) -> CharacteristicMaps:
     if problems:
         raise MapsError(problem_message(str(npz_path), problems))
     metadata = {k: v for k, v in meta.items() if k not in ("schema", "schema_version", "arrays")}
-    return CharacteristicMaps(**arrays, metadata=metadata)
+    maps = CharacteristicMaps(**arrays, metadata=metadata)
+    problems = consistency_problems(maps)
+    if problems:
+        raise MapsError(problem_message(str(npz_path), problems))
+    return maps

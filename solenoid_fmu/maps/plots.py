@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileio import save_figure
 from .interpolate import force_at, psi_at
 from .tables import CharacteristicMaps
 
@@ -61,7 +62,7 @@ def plot_maps(maps: CharacteristicMaps, directory) -> list[Path]:
         ax2.legend(fontsize=6, ncol=2, title="x")
         fig.tight_layout()
         path = directory / fname
-        fig.savefig(path, dpi=110)
+        save_figure(fig, path, dpi=110)
         plt.close(fig)
         out.append(path)
 
@@ -83,7 +84,7 @@ def plot_maps(maps: CharacteristicMaps, directory) -> list[Path]:
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
     path = directory / "psi_i_per_x.png"
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     out.append(path)
 
@@ -104,7 +105,7 @@ def plot_maps(maps: CharacteristicMaps, directory) -> list[Path]:
     ax.legend(fontsize=7)
     fig.tight_layout()
     path = directory / "force_x_per_i.png"
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     out.append(path)
     return out

@@ -35,6 +35,7 @@ __all__ = [
     "MAX_GRID_POINTS",
     "InlineExecutor",
     "build_maps",
+    "process_pool",
     "default_currents",
     "default_positions",
 ]
@@ -47,6 +48,31 @@ DEFAULT_CURRENT_FACTOR = 1.25
 MAX_GRID_POINTS = 1000
 #: The checkout (the package's parent folder): source paths inside it are stored relative to it.
 CHECKOUT = Path(__file__).resolve().parents[2]
+
+
+#: How often [s] a pool worker checks that the process that started it is still alive.
+PARENT_POLL_S = 0.2
+
+
+def _watch_parent(parent_pid: int) -> None:
+    """Pool-worker initializer: a daemon thread ends the worker when its parent is gone (``kill -9`` of
+    the parent leaves the workers blocked on the task queue otherwise: orphans using memory forever)."""
+    import threading
+    import time
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="solenoid-fmu-parent-watch", daemon=True).start()
+
+
+def process_pool(workers: int | None = None) -> cf.ProcessPoolExecutor:
+    """A process pool (``workers`` processes, default all cores) whose workers exit within
+    :data:`PARENT_POLL_S` when the process that made it dies, even by ``kill -9``."""
+    return cf.ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=_watch_parent,
+                                  initargs=(os.getpid(),))
 
 
 class InlineExecutor(cf.Executor):
@@ -221,7 +247,7 @@ def build_maps(
     sweep = sweep if sweep is not None else _default_sweep()
     own_executor = executor is None
     if own_executor:
-        executor = cf.ProcessPoolExecutor(max_workers=os.cpu_count() or 1)
+        executor = process_pool()
     ni, nx = len(i_A), len(x_m)
     psi = np.empty((ni, nx))
     force = np.empty((ni, nx))

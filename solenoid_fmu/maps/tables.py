@@ -169,8 +169,8 @@ def array_problems(arrays: dict[str, np.ndarray]) -> list[str]:
         problems.append(f"x_m needs at least 2 positions, has {nx}")
     if ni < 3:
         problems.append(f"i_A needs at least 3 currents, has {ni}")
-    if npsi < 2:
-        problems.append(f"psi_Wb needs at least 2 points, has {npsi}")
+    if npsi < 3:  # the rule of every reader (realtime.MapTables, export): one rule
+        problems.append(f"psi_Wb needs at least 3 points, has {npsi}")
     expected = {
         "psi_ix_Wb": (ni, nx),
         "force_ix_N": (ni, nx),

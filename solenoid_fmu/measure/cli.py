@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..argtypes import number
 from ..fileio import refuse_overwriting_inputs, require_directory
 from .flux import flux_linkage
 from .plots import plot_flux
@@ -29,7 +30,7 @@ def add_cli(subparsers) -> None:
     p.add_argument("recording", type=Path, help="recording CSV (format v1) with a voltage_V column")
     p.add_argument("--plot", type=Path, metavar="PNG", help="draw Psi(i) branches and the commutation curve")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    p.add_argument("--resistance-ohm", type=float, metavar="R",
+    p.add_argument("--resistance-ohm", type=number(0.0, lo_open=True), metavar="R",
                    help="coil resistance [ohm] at the start (overrides the header; the prior of the R track)")
     p.add_argument("--constant-resistance", action="store_true",
                    help="integrate with one R (the header's or --resistance-ohm) instead of the R(t) track "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..fileio import save_figure
 from .flux import FluxResult
 
 __all__ = ["plot_flux"]
@@ -52,7 +53,7 @@ def plot_flux(result: FluxResult, path, title: str | None = None) -> Path:
         handles, labels = list(wanted.values()), list(wanted)
     ax.legend(handles, labels, fontsize="small")
     ax.set_title(title or f"R = {result.R_ohm:.4g} ohm ({result.resistance_method})")
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     return path
 
 

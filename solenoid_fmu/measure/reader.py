@@ -9,7 +9,9 @@ broken file never yields a half-read recording. The rules of the format are in
 from __future__ import annotations
 
 import io
+import itertools
 import math
+import os
 import re
 from pathlib import Path
 
@@ -29,12 +31,21 @@ from .format import (
     mm_column_to_m,
 )
 
-__all__ = ["MAX_LISTED_PROBLEMS", "MAX_GAP_PERIODS", "read_recording", "validate_recording"]
+__all__ = ["MAX_LISTED_PROBLEMS", "MAX_GAP_PERIODS", "MAX_RECORDING_BYTES", "MIN_TIME_STEP_S", "read_recording",
+           "validate_recording"]
 
 #: Row-level problems listed before the rest is summarised as "... and N more".
 MAX_LISTED_PROBLEMS = 20
 #: A time step larger than this many median sample periods is a gap in the acquisition (an error).
 MAX_GAP_PERIODS = 1000
+#: Largest recording file [bytes] read (100 MB: ~2.5 million samples of 5 columns, two minutes at 20 kHz). The
+#: file is read in blocks of CHUNK_BYTES, so reading peaks at about 2.5 x the file size (the float64 columns and
+#: their copies in the Recording) over the interpreter; larger files are refused before they are read.
+MAX_RECORDING_BYTES = 100_000_000
+#: Size of the blocks of data rows parsed at a time [bytes].
+CHUNK_BYTES = 1 << 22
+#: Shortest time step [s] accepted (1 GHz): shorter ones are no acquisition and overflow rates (dU/dt, 1/dt).
+MIN_TIME_STEP_S = 1e-9
 
 
 _NONFINITE_RE = re.compile(r"[ \t]*[+-]?(?:nan|inf|infinity)[ \t]*\Z", re.IGNORECASE)
@@ -127,19 +138,84 @@ def read_recording(path) -> Recording:
 def _parse(path: Path) -> tuple[list[str], Recording | None]:
     """Parse and check a file; returns (problems, recording or None)."""
     where = str(path)
-    probs = _Problems(where)
     try:
-        raw = path.read_bytes()
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size > MAX_RECORDING_BYTES:
+                return [f"{where}: {size / 1e6:.0f} MB, more than the {MAX_RECORDING_BYTES / 1e6:.0f} MB a recording "
+                        "may have (split it into several recordings)"], None
+            return _parse_open(fh, where, path)
     except OSError as exc:
         return [f"{where}: cannot read: {exc.strerror or exc}"], None
+
+
+class _NotUtf8(Exception):
+    def __init__(self, line: int, byte: int):
+        self.line, self.byte = line, byte
+
+
+def _decode(raw: bytes, first_line: int, offset: int, bom: bool = False) -> list[str]:
+    """Lines of a block of whole lines (``\r\n`` and ``\r`` read as ``\n``)."""
     try:
-        text = raw.decode("utf-8-sig")
+        text = raw.decode("utf-8-sig" if bom else "utf-8")
     except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        return [f"{where}:{line}: not UTF-8 text (byte {exc.start})"], None
+        raise _NotUtf8(first_line + raw[: exc.start].count(b"\n"), offset + exc.start) from None
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
-    while lines and not lines[-1].strip():  # trailing blank lines (and the final newline)
+    if lines and lines[-1] == "" and raw.endswith((b"\n", b"\r")):
         lines.pop()
+    return lines
+
+
+def _head_and_chunks(fh):
+    """The lines up to the column line (the first that is neither blank nor '#'), and a generator of
+    (data lines, line number of the first) blocks of about CHUNK_BYTES; blank lines at the end of the
+    file are dropped (as trailing newlines)."""
+    head, offset = [], 0
+    while True:
+        raw = fh.readline()
+        if not raw:
+            break
+        line = _decode(raw, len(head) + 1, offset, bom=offset == 0)
+        offset += len(raw)
+        head.extend(line or [""])
+        if head and head[-1].strip() and not head[-1].startswith("#"):
+            break
+
+    def chunks():
+        nonlocal offset
+        line_no, held = len(head) + 1, []
+        while True:
+            raws = fh.readlines(CHUNK_BYTES)
+            if not raws:
+                return
+            raw = b"".join(raws)
+            lines = held + _decode(raw, line_no + len(held), offset)
+            offset += len(raw)
+            keep = len(lines)
+            while keep and not lines[keep - 1].strip():
+                keep -= 1
+            held = lines[keep:]
+            if keep:
+                yield lines[:keep], line_no
+            line_no += keep
+
+    return head, chunks()
+
+
+def _parse_open(fh, where: str, path: Path) -> tuple[list[str], Recording | None]:
+    probs = _Problems(where)
+    try:
+        lines, chunks = _head_and_chunks(fh)
+        return _parse_lines(lines, chunks, where, path, probs)
+    except _NotUtf8 as exc:
+        return [f"{where}:{exc.line}: not UTF-8 text (byte {exc.byte})"], None
+
+
+def _parse_lines(lines: list[str], chunks, where: str, path: Path, probs: _Problems):
+    """Check the head (header and column line) and the data blocks of ``chunks``."""
+    if not (lines and lines[-1].strip() and not lines[-1].startswith("#")):  # no column line: the whole file
+        while lines and not lines[-1].strip():  # trailing blank lines (and the final newline)
+            lines.pop()
     if not lines:
         probs.add(1, "empty file: no header and no column line")
         return probs.listing(), None
@@ -173,8 +249,8 @@ def _parse(path: Path) -> tuple[list[str], Recording | None]:
     # column line ----------------------------------------------------------------------------
     col_lineno = idx + 1
     col_line = lines[idx]
-    data = lines[idx + 1:]
-    first_data = idx + 2  # line number of data[0]
+    first_data = idx + 2  # line number of the first data row
+    first_chunk = next(chunks, ([], first_data))[0]
     delimiter_ok = True
     names = [c.strip() for c in col_line.split(",")]
     if len(names) == 1:
@@ -184,7 +260,7 @@ def _parse(path: Path) -> tuple[list[str], Recording | None]:
                 delimiter_ok = False
                 break
         if not delimiter_ok:
-            for j, dline in enumerate(data):
+            for j, dline in enumerate(first_chunk):
                 cells = dline.split(bad)
                 commas = [c for c in cells if _DECIMAL_COMMA_RE.match(c)]
                 if commas:
@@ -213,23 +289,40 @@ def _parse(path: Path) -> tuple[list[str], Recording | None]:
     _check_header(header, header_line, probs, col_lineno, columns)
 
     # data -----------------------------------------------------------------------------------
-    values = None
-    if delimiter_ok:
-        if not data:
-            probs.add(col_lineno, "no data rows after the column line")
-        else:
-            values = _parse_data(data, first_data, names, probs)
-            if values is not None and values.shape[0] < 2:
-                probs.add(first_data, "a recording needs at least 2 samples")
-    if probs or values is None:
+    if not delimiter_ok or (not first_chunk and probs):
         return probs.listing(), None
-
-    cols = {name: values[:, k] for k, name in enumerate(names)}
+    if not first_chunk:
+        probs.add(col_lineno, "no data rows after the column line")
+        return probs.listing(), None
+    t_col = names.index("time_s") if "time_s" in names else None
+    k_pos = names.index("position_mm") if "position_mm" in names else None
+    parts: list[np.ndarray] = []
+    times: list[np.ndarray] = []
+    positions: list[np.ndarray] = []
+    n_rows = 0
+    for data, first_line in itertools.chain([(first_chunk, first_data)], chunks):
+        values, t = _parse_data(data, first_line, names, probs)
+        n_rows += len(data)
+        times.append(t if t is not None else np.full(len(data), np.nan))
+        if values is not None and not probs:
+            parts.append(values)
+            if k_pos is not None:  # from the text: a decimal shift, exact (see mm_text_to_m)
+                positions.append(mm_column_to_m([line.split(",")[k_pos] for line in data]))
+        else:
+            parts, positions = [], []  # a problem: only the listing is wanted from here on
+    if t_col is not None:
+        _check_time(np.concatenate(times), np.arange(n_rows), first_data, probs)
+    del times
+    if n_rows < 2:
+        probs.add(first_data, "a recording needs at least 2 samples")
+    if probs:
+        return probs.listing(), None
+    cols = {}
+    for k, name in enumerate(names):  # one column at a time: the blocks and one column in memory
+        cols[name] = np.concatenate([v[:, k] for v in parts])
+    del parts
     extra = {name: cols[name] for name in names if name not in KNOWN_COLUMNS}
-    position_m = None
-    if "position_mm" in cols:  # from the text: a decimal shift, exact (see mm_text_to_m)
-        k = names.index("position_mm")
-        position_m = mm_column_to_m([line.split(",")[k] for line in data])
+    position_m = np.concatenate(positions) if k_pos is not None else None
     try:
         rec = Recording(kind=header["kind"], solenoid=header["solenoid"], header=header,
                         time_s=cols["time_s"], current_A=cols["current_A"],
@@ -263,9 +356,13 @@ def _check_header(header: dict[str, str], header_line: dict[str, int], probs: _P
                               "(give header '# position_mm: ...' or a position_mm column)")
 
 
-def _parse_data(data: list[str], first_line: int, names: list[str], probs: _Problems) -> np.ndarray | None:
-    """Parse the data rows into an (n, m) float array, or report every problem and return None."""
+def _parse_data(data: list[str], first_line: int, names: list[str],
+                probs: _Problems) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Parse a block of data rows into an (n, m) float array (or None, every problem reported) and its
+    time column (NaN where a row is unusable; None without a time column). The time order is checked
+    by the caller over all blocks."""
     m = len(names)
+    t_col = names.index("time_s") if "time_s" in names else None
     block = "\n".join(data)
     if not _NOT_NUMERIC_TEXT_RE.search(block) and all(line.strip() for line in data):
         try:
@@ -273,23 +370,21 @@ def _parse_data(data: list[str], first_line: int, names: list[str], probs: _Prob
                                 comments=None, quotechar=None)
         except ValueError:
             values = None
+        del block
         if values is not None and values.shape == (len(data), m):
             _check_values(values, data, first_line, names, probs)
-            return None if probs else values
+            return values, (None if t_col is None else values[:, t_col])
     return _diagnose_rows(data, first_line, names, probs)
 
 
 def _check_values(values: np.ndarray, data: list[str], first_line: int, names: list[str],
                   probs: _Problems) -> None:
-    """Out-of-range numbers and the time order on already parsed rows."""
+    """Out-of-range numbers on already parsed rows."""
     bad_rows, bad_cols = np.nonzero(~np.isfinite(values))
     for r, c in zip(bad_rows.tolist(), bad_cols.tolist(), strict=True):
         cell = data[r].split(",")[c].strip()
         probs.add_row(first_line + r,
                       f"number {cell!r} in column {names[c]} is out of range (overflows to inf)")
-    if "time_s" in names:
-        t = values[:, names.index("time_s")]
-        _check_time(t, np.arange(t.size), first_line, probs)
 
 
 def _check_time(t: np.ndarray, rows: np.ndarray, first_line: int, probs: _Problems) -> None:
@@ -297,12 +392,16 @@ def _check_time(t: np.ndarray, rows: np.ndarray, first_line: int, probs: _Proble
     ok = np.isfinite(t)
     t, rows = t[ok], rows[ok]
     for k in np.flatnonzero(np.diff(t) <= 0).tolist():
-        prev, cur = t[k], t[k + 1]
+        prev, cur = float(t[k]), float(t[k + 1])  # Python floats: no np.float64(...) in the message
         why = "duplicate time" if cur == prev else "time goes backwards"
         probs.add_row(first_line + int(rows[k + 1]),
                       f"{why}: time_s {cur!r} after {prev!r} on line {first_line + int(rows[k])} "
                       "(time must be strictly increasing)")
     dt = np.diff(t)
+    for k in np.flatnonzero((dt > 0) & (dt < MIN_TIME_STEP_S)).tolist()[:MAX_LISTED_PROBLEMS]:
+        probs.add_row(first_line + int(rows[k + 1]),
+                      f"time step of {float(dt[k])!r} s before this sample is below {MIN_TIME_STEP_S:g} s "
+                      "(a sample rate above 1 GHz): not an acquisition this format holds")
     if dt.size >= 2:
         period = float(np.median(dt))
         for k in np.flatnonzero(dt > MAX_GAP_PERIODS * period).tolist()[:MAX_LISTED_PROBLEMS]:
@@ -311,7 +410,8 @@ def _check_time(t: np.ndarray, rows: np.ndarray, first_line: int, probs: _Proble
                           f"periods ({period:.6g} s): split the recording where the acquisition stopped")
 
 
-def _diagnose_rows(data: list[str], first_line: int, names: list[str], probs: _Problems) -> None:
+def _diagnose_rows(data: list[str], first_line: int, names: list[str],
+                   probs: _Problems) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The slow path: check every row and cell, report each problem with its line."""
     m = len(names)
     t_col = names.index("time_s") if "time_s" in names else None
@@ -347,10 +447,9 @@ def _diagnose_rows(data: list[str], first_line: int, names: list[str], probs: _P
                 probs.add_row(lineno, f"{cell.strip()!r} in column {names[c]} (nan/inf are not allowed)")
             else:
                 probs.add_row(lineno, f"non-numeric cell {cell.strip()[:30]!r} in column {names[c]}")
-    if t_col is not None:
-        _check_time(times, np.arange(times.size), first_line, probs)
+    t_out = times if t_col is not None else None
     if probs:
-        return None
+        return None, t_out
     # valid after all (only the fast-path screen was too strict): parse the checked cells
-    return np.array([[float(c) for c in line.split(",")] for line in data], dtype=np.float64)
+    return np.array([[float(c) for c in line.split(",")] for line in data], dtype=np.float64), t_out
 

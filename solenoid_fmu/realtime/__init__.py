@@ -17,6 +17,7 @@ from .model import (
     EFFECT_STATE_NAMES,
     MAPS_JSON,
     MAPS_NPZ,
+    MAPS_PREVIOUS,
     MAPS_SCHEMA,
     MAPS_SCHEMA_VERSION,
     MAX_SUBSTEPS,
@@ -32,6 +33,7 @@ from .model import (
     SolenoidModel,
     effects_data,
     load_tables,
+    maps_pair_consistent,
     read_maps_dir,
 )
 from .preisach import PreisachHysteresis
@@ -41,8 +43,9 @@ MODEL_SOURCE = Path(__file__).with_name("model.py")
 
 __all__ = [
     "COPPER_ALPHA_PER_K", "DEFAULT_PARAMS", "DRIVE_CURRENT", "DRIVE_VOLTAGE", "EFFECT_NAMES", "EFFECT_STATE_NAMES",
-    "HysteresisError", "MAPS_JSON", "MAPS_NPZ", "MAPS_SCHEMA", "MAPS_SCHEMA_VERSION", "MAX_SUBSTEPS", "MODEL_SOURCE",
+    "HysteresisError", "MAPS_JSON", "MAPS_NPZ", "MAPS_PREVIOUS", "MAPS_SCHEMA", "MAPS_SCHEMA_VERSION", "MAX_SUBSTEPS",
+    "MODEL_SOURCE",
     "MapTables", "ModelError", "ModelInputError", "ModelMapsError", "NEWTON_MAX_ITER", "NEWTON_TOL_REL",
     "PlayHysteresis", "PreisachHysteresis", "ROS2_GAMMA", "STATE_LAYOUT", "STATE_NAMES", "SolenoidModel",
-    "effects_data", "fit_play_to_series", "load_tables", "read_maps_dir",
+    "effects_data", "fit_play_to_series", "load_tables", "maps_pair_consistent", "read_maps_dir",
 ]

@@ -140,6 +140,8 @@ MAPS_SCHEMA_VERSION = 1
 #: The two files of a maps directory (:func:`read_maps_dir`).
 MAPS_JSON = "maps.json"
 MAPS_NPZ = "maps.npz"
+#: Folder in a map directory holding the earlier whole pair while a writer replaces it (maps.io.save_maps).
+MAPS_PREVIOUS = ".maps-previous"
 #: Most elements one array of a maps.npz may declare (a 1000 x 1000 grid is far beyond any sweep).
 MAPS_MAX_ARRAY_ELEMENTS = 10_000_000
 
@@ -612,6 +614,20 @@ def _npz_member_problems(raw: bytes, shapes) -> list:
     return problems
 
 
+def maps_pair_consistent(maps_dir) -> bool:
+    """True if ``maps_dir`` holds ``maps.json`` and ``maps.npz`` written together: the sidecar parses and
+    records the npz file's sha256, and it matches."""
+    try:
+        with open(os.path.join(maps_dir, MAPS_JSON), encoding="utf-8") as fh:
+            meta = json.load(fh)
+        with open(os.path.join(maps_dir, MAPS_NPZ), "rb") as fh:
+            digest = hashlib.sha256(fh.read()).hexdigest()
+    except (OSError, ValueError):
+        return False
+    entry = meta.get("arrays") if isinstance(meta, dict) else None
+    return isinstance(entry, dict) and entry.get("sha256") == digest
+
+
 def read_maps_dir(maps_dir, check_meta=None) -> tuple:
     """Read a maps directory as stored: the ``maps.json`` sidecar and the ``maps.npz`` arrays.
 
@@ -623,6 +639,9 @@ def read_maps_dir(maps_dir, check_meta=None) -> tuple:
     ``"arrays"`` (files without that entry, written by other tools in the shared format, are
     accepted), members that are not numeric, larger than :data:`MAPS_MAX_ARRAY_ELEMENTS` or shaped
     other than the sidecar says (checked on their headers before any data is read), and pickles.
+    A pair that does not match because its writer was killed between its two renames is read from
+    the earlier whole pair the writer kept in :data:`MAPS_PREVIOUS` (so a reader sees the old or the
+    new maps, whole).
 
     Parameters
     ----------
@@ -685,6 +704,9 @@ def read_maps_dir(maps_dir, check_meta=None) -> tuple:
     recorded = entry.get("sha256")
     digest = hashlib.sha256(raw).hexdigest()
     if isinstance(recorded, str) and digest != recorded:
+        previous = os.path.join(maps_dir, MAPS_PREVIOUS)
+        if maps_pair_consistent(previous):  # a writer was killed between its renames: the earlier pair
+            return read_maps_dir(previous, check_meta)
         raise ModelMapsError(f"{npz_path}: sha256 {digest[:12]}... does not match the {recorded[:12]}... recorded "
                              f"in {MAPS_JSON}; the two files were not written together")
     try:

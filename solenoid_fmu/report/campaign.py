@@ -2,9 +2,50 @@
 
 from __future__ import annotations
 
+import json
+import math
+import numbers
 from pathlib import Path
 
 from .html import errors_table, write_html_report
+
+#: Longest note shown in the improvement table [characters]; longer ones end at a "; " with " ...".
+NOTE_MAX_CHARS = 400
+
+
+def note_text(note) -> str:
+    """An improvement step's note as plain text: a JSON object (as ``improve`` stores fitted values) becomes
+    ``key: value; ...`` (nested objects in parentheses, numbers with 4 significant digits); never cut
+    inside a value: beyond :data:`NOTE_MAX_CHARS` the text ends at the last whole item with `` ...``."""
+    if not note:
+        return ""
+    try:
+        value = json.loads(note) if isinstance(note, str) else note
+    except ValueError:
+        value = note
+    if not isinstance(value, dict):
+        text = str(value)
+        return text if len(text) <= NOTE_MAX_CHARS else text[:NOTE_MAX_CHARS].rsplit(" ", 1)[0] + " ..."
+    items = [f"{k}: {_plain(v)}" for k, v in value.items()]
+    out = ""
+    for k, item in enumerate(items):
+        nxt = item if not out else f"{out}; {item}"
+        if len(nxt) > NOTE_MAX_CHARS:
+            return (out or item[:NOTE_MAX_CHARS].rsplit(" ", 1)[0]) + f" ... ({len(items) - k} more)"
+        out = nxt
+    return out
+
+
+def _plain(v) -> str:
+    if isinstance(v, dict):
+        return "(" + ", ".join(f"{k} {_plain(x)}" for k, x in v.items()) + ")"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_plain(x) for x in v) + "]"
+    if isinstance(v, bool) or v is None:
+        return str(v)
+    if isinstance(v, numbers.Real):
+        return f"{v:.4g}" if math.isfinite(v) else str(v)
+    return str(v)
 
 
 def write_campaign_report(path, name, summary, ident, res, before) -> Path:
@@ -55,7 +96,7 @@ def write_campaign_report(path, name, summary, ident, res, before) -> Path:
                  "recordings falls by at least 10 % (mean squared NRMSE by the full scale per kind, each capped at 1).",
          "table": {"columns": ["effect", "kept", "validation error before", "after", "note"],
                    "rows": [[st["effect"], "yes" if st["accepted"] else "no", st["heldout_error_before"],
-                             st["heldout_error_after"], st["note"][:120]] for st in summary["improve_steps"]]}},
+                             st["heldout_error_after"], note_text(st["note"])] for st in summary["improve_steps"]]}},
         {"heading": "Errors before and after improvement (RMS, SI units)",
          "table": errors_table(res["before"], res["after"])},
         {"heading": "Validation of the improved FMU", "figures": res["after"].get("figures", [])},

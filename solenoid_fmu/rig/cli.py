@@ -12,7 +12,8 @@ import json
 import shutil
 from pathlib import Path
 
-from ..field import load_geometry, load_material
+from ..argtypes import integer, number
+from ..field import MIN_MESH_SIZE, load_geometry, load_material
 from ..fileio import refuse_overwriting_inputs, require_directory
 from ..maps import build_maps, default_currents, default_positions, save_maps
 from ..realtime import ModelError, load_tables
@@ -41,8 +42,9 @@ def add_cli(subparsers) -> None:
     p.add_argument("--maps", metavar="MAPSDIR", help="use these true maps instead of running the FEM")
     p.add_argument("--effects", default="", metavar="LIST",
                    help=f"comma-separated effects: {','.join(EFFECT_NAMES)}, or 'all' (default: none)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
-    p.add_argument("--mesh-size", type=float, default=1.0, help="FEM mesh-size factor when building maps")
+    p.add_argument("--seed", type=integer(0), default=0, help="seed of the sensor noise, >= 0 (default 0)")
+    p.add_argument("--mesh-size", type=number(MIN_MESH_SIZE), default=1.0,
+                   help="FEM mesh-size factor when building maps")
     p.add_argument("--campaign", metavar="JSON", help="campaign parameters (keys of CampaignConfig) as JSON file")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="campaign directory to write")
     p.set_defaults(func=_cli)

@@ -98,6 +98,8 @@ typedef struct {
     int logging_on;
     int type;   /* fmi2ModelExchange or fmi2CoSimulation */
     int phase;
+    void **states;   /* the FMU states this instance allocated and has not freed (GetFMUstate, DeSerialize) */
+    size_t n_states, cap_states;
 } Inst;
 
 #define SERIAL_MAGIC "SOLFMUS1"
@@ -770,6 +772,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     in->cb = *functions;
     in->logging_on = loggingOn ? 1 : 0;
     in->type = fmuType;
+    in->states = NULL;
+    in->n_states = in->cap_states = 0;
     in->phase = PH_INSTANTIATED;
     reset_core(&in->core);
     return in;
@@ -781,6 +785,7 @@ void fmi2FreeInstance(fmi2Component comp)
     fmi2CallbackFreeMemory fr;
     if (in == NULL) return;
     fr = in->cb.freeMemory;
+    if (in->states != NULL) fr(in->states);
     fr(in->name);
     fr(in);
 }
@@ -1097,14 +1102,49 @@ static const char *core_problem(const Core *c)
     return NULL;
 }
 
+/* The states this instance handed out: only those may be written, set or freed. A pointer from
+ * elsewhere (another FMU's or another backend's state, a freed one) is refused with fmi2Error instead of
+ * being read, overwritten or freed (a double free). */
+static int state_index(const Inst *in, const void *state)
+{
+    size_t k;
+    for (k = 0; k < in->n_states; k++) if (in->states[k] == state) return (int)k;
+    return -1;
+}
+
+/* A new state (registered), or NULL with the reason logged. */
+static void *new_state(Inst *in, const char *fn)
+{
+    void *st;
+    if (in->n_states == in->cap_states) {
+        size_t cap = in->cap_states ? 2 * in->cap_states : 8;
+        void **grown = (void **)in->cb.allocateMemory(cap, sizeof(void *));
+        if (grown == NULL) { say(in, fmi2Error, "%s: out of memory", fn); return NULL; }
+        if (in->n_states) memcpy(grown, in->states, in->n_states * sizeof(void *));
+        if (in->states != NULL) in->cb.freeMemory(in->states);
+        in->states = grown;
+        in->cap_states = cap;
+    }
+    st = in->cb.allocateMemory(1, sizeof(Core));
+    if (st == NULL) { say(in, fmi2Error, "%s: out of memory", fn); return NULL; }
+    in->states[in->n_states++] = st;
+    return st;
+}
+
+/* *state is NULL (allocate) or one of this instance's states (reuse); else refused. */
+static int writable_state(Inst *in, fmi2FMUstate *state, const char *fn)
+{
+    if (*state == NULL) return (*state = new_state(in, fn)) != NULL;
+    if (state_index(in, *state) >= 0) return 1;
+    say(in, fmi2Error, "%s: the given state was not allocated by this FMU instance; not written", fn);
+    return 0;
+}
+
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state)
 {
     Inst *in = (Inst *)comp;
     if (in == NULL || state == NULL) return fmi2Error;
-    if (*state == NULL) {
-        *state = in->cb.allocateMemory(1, sizeof(Core));
-        if (*state == NULL) { say(in, fmi2Error, "fmi2GetFMUstate: out of memory"); return fmi2Error; }
-    }
+    if (!writable_state(in, state, "fmi2GetFMUstate")) return fmi2Error;
     memcpy(*state, &in->core, sizeof(Core));
     return fmi2OK;
 }
@@ -1116,6 +1156,10 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state)
     const char *why;
     if (in == NULL) return fmi2Error;
     if (c == NULL) { say(in, fmi2Error, "fmi2SetFMUstate: no state given"); return fmi2Error; }
+    if (state_index(in, c) < 0) {
+        say(in, fmi2Error, "fmi2SetFMUstate: not a state of this FMU instance (not allocated by it); the state is kept");
+        return fmi2Error;
+    }
     why = core_problem(c);
     if (why != NULL) { say(in, fmi2Error, "fmi2SetFMUstate: not a state of this FMU (%s); the state is kept", why); return fmi2Error; }
     memcpy(&in->core, c, sizeof(Core));
@@ -1125,8 +1169,16 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state)
 fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *state)
 {
     Inst *in = (Inst *)comp;
+    int k;
     if (in == NULL || state == NULL) return fmi2Error;
-    if (*state) in->cb.freeMemory(*state);
+    if (*state == NULL) return fmi2OK;
+    k = state_index(in, *state);
+    if (k < 0) {
+        say(in, fmi2Error, "fmi2FreeFMUstate: the given state was not allocated by this FMU instance; not freed");
+        return fmi2Error;
+    }
+    in->states[k] = in->states[--in->n_states];
+    in->cb.freeMemory(*state);
     *state = NULL;
     return fmi2OK;
 }
@@ -1147,6 +1199,10 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byt
     Inst *in = (Inst *)comp;
     unsigned int head[2];
     if (in == NULL || state == NULL || serializedState == NULL) return fmi2Error;
+    if (state_index(in, state) < 0) {
+        say(in, fmi2Error, "fmi2SerializeFMUstate: the given state was not allocated by this FMU instance");
+        return fmi2Error;
+    }
     if (size < SERIAL_HEADER + sizeof(Core)) { say(in, fmi2Error, "fmi2SerializeFMUstate: buffer too small"); return fmi2Error; }
     head[0] = (unsigned int)STATE_LAYOUT;
     head[1] = (unsigned int)sizeof(Core);
@@ -1180,10 +1236,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
         say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a valid state of this FMU (%s)", why);
         return fmi2Error;
     }
-    if (*state == NULL) {
-        *state = in->cb.allocateMemory(1, sizeof(Core));
-        if (*state == NULL) { say(in, fmi2Error, "fmi2DeSerializeFMUstate: out of memory"); return fmi2Error; }
-    }
+    if (!writable_state(in, state, "fmi2DeSerializeFMUstate")) return fmi2Error;
     memcpy(*state, &tmp, sizeof(Core));
     return fmi2OK;
 }
