@@ -18,10 +18,10 @@ hold on real campaigns"):
 Uncertainty of a point (1 sigma, absolute): a relative floor (:data:`PSI_FLOOR_REL`,
 :data:`FORCE_FLOOR_REL`, of the value or of a fifth of the recording's largest value, whichever
 is larger), and for flux the bias of the branch mean of a rate-independent loop, second order in
-its current half-width h: ``|Psi''| h^2 / 2``, plus :data:`LOOP_ASYMMETRY` times the half-width
-(the first, virgin ascent is not symmetric to the descending branch); below
-:data:`LOOP_NEAR_ORIGIN` half-widths of current the whole half-width (the descending branch ends at
-the remanence, so the mean there is biased to first order).
+its current half-width h: ``|Psi''| h^2 / 2``, plus a share of the half-width w: all of it below
+:data:`LOOP_NEAR_ORIGIN` h (the loops are unipolar: the descending branch ends at the remanence, so
+the mean there is biased to first order), falling as 1/i above, to :data:`LOOP_ASYMMETRY` w (the first,
+virgin ascent is not symmetric to the descending branch).
 
 Units: SI (A, m, Wb, N).
 """
@@ -162,7 +162,8 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=()) -> tuple[list[Measu
         peak = float(np.max(np.abs(com_psi)))
         floor = PSI_FLOOR_REL * np.maximum(np.abs(psi_sel), 0.2 * peak)
         track = _track_sigma_rel(cc, camp) if heated else 0.0
-        bias = np.where(i_sel >= LOOP_NEAR_ORIGIN * h_i, 0.5 * d2 * h_i**2 + LOOP_ASYMMETRY * half_w, half_w)
+        near = np.clip(LOOP_NEAR_ORIGIN * h_i / np.maximum(i_sel, 1e-12), LOOP_ASYMMETRY, 1.0)
+        bias = 0.5 * d2 * h_i**2 + near * half_w
         sigma = np.sqrt(floor**2 + (track * np.abs(psi_sel)) ** 2 + bias**2)
         x = cc.position_m
         names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))

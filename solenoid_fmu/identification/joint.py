@@ -31,18 +31,48 @@ import numpy as np
 
 from ..errors import SolenoidError
 from .fit import projected_lm
-from .parametrization import fit_to_curve, project_unimodal, scaled_curve, smoothness_matrix, with_peak_of
+from .parametrization import fit_to_curve, project_unimodal, scaled_curve, with_peak_of
 from .point_model import PointModel
 
-__all__ = ["JointFit", "identify_joint", "held_out_residuals", "PRIOR_WEIGHTS"]
+__all__ = ["JointFit", "identify_joint", "held_out_residuals", "PRIOR_WEIGHTS", "node_values", "node_theta"]
 
 #: Weights of the stage-2 prior (per unit of ln chi curvature, in units of one point's sigma).
 PRIOR_WEIGHTS = (1.0,)
+#: Budget of FEM evaluations of stage 1 (two parameters: it converges in a few, or cannot fit at all).
+STAGE1_NFEV = 8
 #: Largest parameter change (ln units: a factor 1.65 in chi, the scale or the stretch) of the
 #: linearized refit without a group: the Gauss-Newton linearization is not trusted further.
 HELD_OUT_TRUST = 0.5
 #: Weight of the distance to stage 1 inside the prior, beside the curvature.
 PRIOR_RIDGE = 0.3
+
+
+def node_values(model, theta) -> np.ndarray:
+    """(ln chi at the nodes, tail slope) of the model's parameters theta."""
+    return np.concatenate([model.log_chi_nodes(np.asarray(theta, dtype=float)), [theta[-1]]])
+
+
+def node_theta(v) -> np.ndarray:
+    """The model's parameters (ln chi at the first node, increments, tail) of node values v."""
+    v = np.asarray(v, dtype=float)
+    return np.concatenate([[v[0]], np.diff(v[:-1]), [v[-1]]])
+
+
+def node_jacobian(m: int) -> np.ndarray:
+    """d v / d theta (m + 1 square): v = cumulative sums of theta's first m entries, then the tail."""
+    A = np.zeros((m + 1, m + 1))
+    A[:m, :m] = np.tril(np.ones((m, m)))
+    A[m, m] = 1.0
+    return A
+
+
+def node_smoothness(m: int) -> np.ndarray:
+    """Rows: second differences of ln chi at the nodes, and the tail slope (prior on node values)."""
+    D = np.zeros((m - 1, m + 1))
+    for j in range(m - 2):
+        D[j, j:j + 3] = (1.0, -2.0, 1.0)
+    D[m - 2, m] = 1.0
+    return D
 
 
 class JointFit:
@@ -83,7 +113,7 @@ def held_out_residuals(J_w: np.ndarray, r_w: np.ndarray, groups: np.ndarray, pri
     return out
 
 
-def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 13, max_nfev: int = 16,
+def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 13, max_nfev: int = 24,
                    progress=None) -> JointFit:
     """Fit B(H) to measured points (see the module docstring).
 
@@ -127,7 +157,7 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 
     # stage 1
     pm.curve_fn = lambda p: scaled_curve(start_curve, p[0], p[1])
     lo1, hi1 = np.array([np.log(0.6), np.log(0.2)]), np.array([np.log(1.4), np.log(5.0)])
-    st1 = projected_lm(res, jac, np.zeros(2), lo1, hi1, max_nfev)
+    st1 = projected_lm(res, jac, np.zeros(2), lo1, hi1, min(max_nfev, STAGE1_NFEV))
     r1 = res(st1.x)
     J1 = jac(st1.x)
     curve1 = scaled_curve(start_curve, *st1.x, name="identified")
@@ -137,33 +167,37 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 
                         "pred": pm.values(st1.x), "params": {"polarization_scale": float(np.exp(st1.x[0])),
                                                             "H_stretch": float(np.exp(st1.x[1]))},
                         "status": st1.message}
-    # stage 2
+    # stage 2, in node values v = (ln chi at the nodes, tail slope): each parameter acts locally, the
+    # unimodal projection is an isotonic fit of v itself, the prior a second difference of v
     model, theta1 = fit_to_curve(curve1, m=m)
-    lo, hi = model.bounds()
-    theta1 = project_unimodal(model, theta1)
-    pm.curve_fn = model.curve
-    D = np.vstack([smoothness_matrix(model), PRIOR_RIDGE * np.eye(len(theta1))])
-    prior0 = D @ theta1
-    theta_start = theta1
+    v1 = node_values(model, project_unimodal(model, theta1))
+    pm.curve_fn = lambda v: model.curve(node_theta(v))
+    D = np.vstack([node_smoothness(m), PRIOR_RIDGE * np.eye(m + 1)])
+    prior0 = D @ v1
+    v_start = v1
     J_last = None
+
+    def project(v):
+        return node_values(model, project_unimodal(model, node_theta(v)))
+
     for w in PRIOR_WEIGHTS:
-        def residual(theta, w=w):
-            return np.concatenate([res(theta), w * (D @ theta - prior0)])
+        def residual(v, w=w):
+            return np.concatenate([res(v), w * (D @ v - prior0)])
 
-        def jacobian(theta, w=w):
-            return np.vstack([jac(theta), w * D])
+        def jacobian(v, w=w):
+            return np.vstack([jac(v), w * D])
 
-        st2 = projected_lm(residual, jacobian, theta_start, lo, hi, max_nfev,
-                           project=lambda v: project_unimodal(model, v))
+        st2 = projected_lm(residual, jacobian, v_start, None, None, max_nfev, project=project)
         r2 = res(st2.x)
         J2 = jac(st2.x)
-        J_last = (st2.x, J2)
+        theta2 = node_theta(st2.x)
+        J_last = (theta2, J2 @ node_jacobian(m))
         cands[f"stage 2 (prior {w:g})"] = {
-            "curve": model.curve(st2.x), "r": r2,
-            "r_out": held_out_residuals(J2, r2, groups, w * D, w * (D @ st2.x - prior0), st2.x,
-                                        lambda v: project_unimodal(model, v)),
-            "pred": pm.values(st2.x), "theta": st2.x, "status": st2.message}
-        theta_start = st2.x
+            "curve": model.curve(theta2), "r": r2,
+            "r_out": held_out_residuals(J2, r2, groups, w * D, w * (D @ st2.x - prior0), st2.x, project),
+            "pred": pm.values(st2.x), "theta": theta2, "status": st2.message}
+        v_start = st2.x
+    theta1 = node_theta(v1)
     for c in cands.values():
         c["rms_in"] = float(np.sqrt(np.mean(c["r"] ** 2)))
         c["rms_out"] = float(np.sqrt(np.mean(c["r_out"] ** 2)))
