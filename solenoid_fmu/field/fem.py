@@ -244,8 +244,9 @@ class Solver:
         self._pattern(linear_backend)
         self._config: _Config | None = None
         self.solves = 0
-        #: Relative residual target of Newton (callers that need less, e.g. the identification, raise it).
-        self.rtol = NEWTON_RTOL
+        #: Relative residual target of Newton; None: NEWTON_RTOL (callers that need less, e.g. the
+        #: identification, raise it).
+        self.rtol: float | None = None
 
     # -- sparsity pattern and scatter --------------------------------------------------------
     def _pattern(self, linear_backend: str | None):
@@ -433,7 +434,7 @@ class Solver:
                 rnorm = np.linalg.norm(res[free]) / fnorm
                 floor = np.finfo(float).eps * np.linalg.norm(floor_rows[free]) / fnorm
                 history.append(rnorm)
-                if rnorm <= max(self.rtol, NEWTON_FLOOR_FACTOR * floor):
+                if rnorm <= max(self.rtol or NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor):
                     it -= 1
                     break
                 if tiny_update and rnorm < NEWTON_STALL_RTOL:  # judged on the residual after the tiny update
@@ -476,7 +477,7 @@ class Solver:
 
     def _stall_note(self, i_A: float, x_m: float, rnorm: float, floor: float, why: str) -> str:
         """Log and return the note of a Newton stall accepted as converged (see ``NEWTON_STALL_RTOL``)."""
-        target = max(self.rtol, NEWTON_FLOOR_FACTOR * floor)
+        target = max(self.rtol or NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor)
         note = (f"Newton stopped at relative residual {rnorm:.2e} ({why}; target {target:.2g}, rounding floor "
                 f"{floor:.2g}); accepted as converged: below the stall tolerance {NEWTON_STALL_RTOL:g}")
         log.info("FEM point i = %g A, x = %g mm: %s", i_A, x_m * 1e3, note)

@@ -55,7 +55,7 @@ EDDY_RATE_SPREAD = 2.0
 #: (the descending branch ends at the remanence): there the whole half-width counts as its uncertainty.
 LOOP_NEAR_ORIGIN = 3.0
 #: Positions taken from each force-stroke curve (evenly over the range passed both ways).
-FORCE_POSITIONS = 4
+FORCE_POSITIONS = 3
 
 
 @dataclass(frozen=True)

@@ -113,7 +113,7 @@ def held_out_residuals(J_w: np.ndarray, r_w: np.ndarray, groups: np.ndarray, pri
     return out
 
 
-def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 13, max_nfev: int = 24,
+def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 13, max_nfev: int = 16,
                    progress=None) -> JointFit:
     """Fit B(H) to measured points (see the module docstring).
 
