@@ -18,14 +18,16 @@
    its native twin ``NAME-improved-native.fmu``;
 8. **report**: ``report.html`` (self-contained) and ``summary.json``.
 
-When ``improve`` adds coil heating, the flux recordings the identification used carried the heating's
-eq.-4 drift (a B(H) error the diagnosis cannot always separate from the effects left, e.g. hysteresis
-explains part of a force residual a wrong B(H) leaves): steps 2-7 run once more on recordings whose
-voltage is corrected with the fitted heating model (:func:`solenoid_fmu.loop.heating_corrected`,
+When ``improve`` adds coil heating and the identification did not already integrate eq. 4 with the
+campaign's resistance tracks (it does where they show the coil heating), the flux recordings it used
+carried the heating's eq.-4 drift (a B(H) error the diagnosis cannot always separate from the effects
+left, e.g. hysteresis explains part of a force residual a wrong B(H) leaves): steps 2-7 run once more on recordings
+whose voltage is corrected with the fitted heating model (:func:`solenoid_fmu.loop.heating_corrected`,
 written to ``heating-corrected/``); ``summary.json["first_round"]`` keeps what the first round found.
 
 ``summary.json`` holds ``material``, ``fmu``, ``improved_fmu`` (paths), ``effects_added`` (the
-words ``diagnose`` uses), ``errors`` (one row per recording and signal: RMS error ``before`` and
+words ``diagnose`` uses), ``effects_found`` (those and ``eddy`` where step 4 measured it,
+:func:`effects_found`), ``errors`` (one row per recording and signal: RMS error ``before`` and
 ``after`` improvement in the signal's SI unit, and the same normalized by the measured range),
 the diagnosis, the identification summary and the wall time of every step.
 
@@ -63,7 +65,6 @@ from .maps import (
     default_currents,
     default_positions,
     fit_eddy,
-    load_maps,
     name_problem,
     process_pool,
     save_maps,
@@ -142,6 +143,59 @@ def _maps_grid(preset: dict, geometry, recordings=()):
     if preset["n_x"] is not None:
         x = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, preset["n_x"])
     return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"])
+
+
+def campaign_maps(geometry, curve, recordings, eddy_recordings=None, *, preset: str = "full", executor=None,
+                  name: str = "identified", progress=None) -> tuple:
+    """Steps 3 and 4 in memory: the characteristic maps of the identified steel, with the eddy conductance.
+
+    Parameters
+    ----------
+    geometry : Geometry
+    curve : BHCurve
+        The identified steel.
+    recordings : list of Recording
+        The campaign (the sweep's current range covers their largest |current|, :func:`maps_current_grid`).
+    eddy_recordings : list of Recording, optional
+        Where G_eddy is fitted from (default: the ``eddy`` recordings among ``recordings``; the pipeline's
+        second round passes the heating-corrected ones).
+    preset : {"full", "quick"}
+        The FEM grid (:data:`PRESETS`).
+    executor : concurrent.futures.Executor, optional
+        Runs the sweep (default: in this process).
+    progress : callable(str), optional
+        Receives one line per step.
+
+    Returns
+    -------
+    (CharacteristicMaps, EddyFit or None)
+        The maps (``eddy.G_eddy_S`` set when there are eddy recordings) and the eddy fit.
+    """
+    cfg = PRESETS[preset]
+    say = progress or (lambda msg: None)
+    x_m, i_A = _maps_grid(cfg, geometry, recordings)
+    say(f"   currents 0 .. {i_A[-1]:.4g} A ({len(i_A)}): 1.25 x the larger of the rated current and the "
+        "campaign's largest |current|")
+    maps = build_maps(geometry, curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"],
+                      executor=executor or InlineExecutor(), progress=progress is not None, name=name)
+    eddy_recs = [r for r in (recordings if eddy_recordings is None else eddy_recordings) if r.kind == "eddy"]
+    if not eddy_recs:
+        say("   no eddy recording: G_eddy stays 0")
+        return maps, None
+    eddy = fit_eddy(eddy_recs, maps)
+    say(f"   G_eddy = {eddy.G_model_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
+    return maps.with_eddy(eddy.G_model_S, source=", ".join(r.path.name if r.path is not None else r.kind
+                                                                     for r in eddy_recs)), eddy
+
+
+def effects_found(effects_added, eddy) -> list[str]:
+    """The effects the final model carries, in the diagnosis's words: those the loop added and ``eddy``
+    when step 4 measured an eddy current (:attr:`solenoid_fmu.maps.EddyFit.measurable`; the paper's
+    eddy term is the maps' ``G_eddy``, the loop's ladder only refines it)."""
+    found = set(effects_added)
+    if eddy is not None and eddy.measurable:
+        found.add("eddy")
+    return sorted(found)
 
 
 def _output_dir(folder, out_dir) -> Path:
@@ -234,31 +288,16 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
             f"{ident_summary.get('equivalent_sweeps', float('nan')):.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")
         times["identify"] = time.perf_counter() - t0
 
-        t0 = step("characteristic maps (FEM sweep with the identified steel)")
+        t0 = step("characteristic maps (FEM sweep with the identified steel), eddy-current parameter")
         maps_dir = out / "maps"
-        x_m, i_A = _maps_grid(cfg, geom, recs)
-        say(f"   currents 0 .. {i_A[-1]:.4g} A ({len(i_A)}): 1.25 x the larger of the rated current and the "
-            "campaign's largest |current|")
         executor = InlineExecutor() if workers == 1 else process_pool(workers)
         try:
-            maps = build_maps(geom, ident.curve, x_m=x_m, i_A=i_A, mesh_size=cfg["maps_mesh_size"], executor=executor,
-                              progress=progress is not None, name=f"{name}-identified")
+            maps, eddy = campaign_maps(geom, ident.curve, recs, ident_recs, preset=preset, executor=executor,
+                                       name=f"{name}-identified", progress=say if progress is not None else None)
         finally:
             executor.shutdown()
         save_maps(maps, maps_dir)
         times["maps"] = time.perf_counter() - t0
-
-        t0 = step("eddy-current parameter from the eddy recordings")
-        eddy_recs = [r for r in ident_recs if r.kind == "eddy"]
-        eddy = None
-        if eddy_recs:
-            eddy = fit_eddy(eddy_recs, maps)
-            save_maps(maps.with_eddy(eddy.G_model_S, source=", ".join(r.path.name for r in eddy_recs)), maps_dir)
-            maps = load_maps(maps_dir)
-            say(f"   G_eddy = {eddy.G_model_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
-        else:
-            say("   no eddy recording: G_eddy stays 0")
-        times["eddy"] = time.perf_counter() - t0
 
         t0 = step("export the FMU")
         fmu = build_fmu(maps_dir, out / f"{name}.fmu")
@@ -285,7 +324,10 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         # flux may itself be what spoiled the heating's validation (the material error swamps it)
         tried_heat = next((st["params"] for st in res["steps"] if st["effect"] == "heating" and st["params"]), None)
         heat_suspected = not heat and tried_heat is not None and res["diagnoses"][-1]["verdict"] == "material"
-        if round_no == 2 or not (heat or heat_suspected):
+        # the identification integrated eq. 4 with the campaign's resistance tracks: its flux carries no
+        # heating drift, a second round would only repeat it
+        tracks_used = bool(ident.extra.get("resistance_tracks_used"))
+        if round_no == 2 or tracks_used or not (heat or heat_suspected):
             break
         # Coil heating was found: the flux recordings the identification used carried the heating's eq.-4
         # drift (a B(H) error that the diagnosis may not be able to separate from the other effects left).
@@ -314,7 +356,8 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         "campaign": str(folder), "material": str(material_csv), "maps": str(maps_dir), "fmu": str(fmu),
         "native_fmu": None if native is None else str(native), "improved_fmu": res["improved_fmu"],
         "improved_native_fmu": None if native_improved is None else str(native_improved),
-        "improved_maps": res["maps"], "effects_added": res["effects_added"], "errors": errors,
+        "improved_maps": res["maps"], "effects_added": res["effects_added"],
+        "effects_found": effects_found(res["effects_added"], eddy), "errors": errors,
         "not_identifiable": res.get("not_identifiable", {}),
         "diagnosis": res["diagnoses"][0] if res["diagnoses"] else None, "improve_steps": res["steps"],
         "identification": ident_summary,

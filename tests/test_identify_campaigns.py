@@ -10,32 +10,17 @@ judged by what a user gets from it: Psi and F by the FEM at 4 strokes x 5 curren
 truth, within 1 % and 2 %.
 
 A failing campaign reproduces with ``random_campaign(load_tables(truth_dir(NAME)), DIR, EFFECTS,
-seed=SEED, max_samples=SAMPLES)`` and ``solenoid-fmu identify DIR/recordings/*.csv -o m.csv``.
+seed=SEED, max_samples=SAMPLES)`` (``tests/steelcampaigns.py``) and
+``solenoid-fmu identify DIR/recordings/*.csv -o m.csv``.
 """
 
 import json
-import os
-import shutil
-import uuid
 
 import numpy as np
 import pytest
-from truthsteels import is_published, prediction_errors, truth_dir
+from steelcampaigns import CAMPAIGNS, campaign_id, identified
+from truthsteels import is_published, prediction_errors
 
-from solenoid_fmu.identification import identify_from_recordings
-from solenoid_fmu.realtime import load_tables
-from solenoid_fmu.rig.protocols import random_campaign
-
-SAMPLES = 8000
-#: Currents per stroke, as the pipeline's quick preset (bounds the test time).
-N_CURRENTS = 6
-#: (truth steel, effects, protocol seed): >= 6 published steels, the rest random.
-CAMPAIGNS = [
-    ("9SMnPb28", "", 11), ("9SMn28K", "heating", 12), ("AISI_1008", "eddy-ladder", 13),
-    ("DC03", "hysteresis", 14), ("X6Cr17", "heating,hysteresis", 15), ("VacoferS2", "", 16),
-    ("Permenorm3601K3", "hysteresis", 17), ("random-0", "heating", 18), ("random-1", "eddy-ladder", 19),
-    ("random-2", "", 20), ("random-3", "heating,hysteresis", 21), ("random-4", "hysteresis", 22),
-]
 PSI_TOL, F_TOL = 0.01, 0.02
 #: Campaigns where the identified curve misses the issue's goal today (the issue stays open): the
 #: largest error measured (Psi %, F %) at the commit that added this list, 2-core machine.
@@ -55,38 +40,7 @@ def _strict(name, effects, seed):
         psi, F = SHORT_OF_GOAL[(name, seed)]
         marks = pytest.mark.xfail(reason=f"issue 20 open: measured Psi {psi} %, F {F} % (goal 1 %, 2 %)",
                                   strict=False)
-    return pytest.param(name, effects, seed, marks=marks, id=f"{name}-{effects or 'none'}-{seed}")
-
-
-def campaign_dir(shared, name, effects, seed):
-    """The campaign's folder (drawn once per session, shared by xdist workers)."""
-    final = shared / f"steel-{name}-{effects.replace(',', '+') or 'none'}-{seed}"
-    if not final.is_dir():
-        tmp = shared / f".tmp-{uuid.uuid4().hex}"
-        random_campaign(load_tables(truth_dir(name)), tmp, effects, seed=seed, max_samples=SAMPLES)
-        try:
-            os.rename(tmp, final)
-        except OSError:
-            shutil.rmtree(tmp, ignore_errors=True)
-    return final
-
-
-def identified(shared, name, effects, seed):
-    """(campaign dir, IdentificationResult or None, material.csv): identified once per session."""
-    folder = campaign_dir(shared, name, effects, seed)
-    out = folder.parent / f"{folder.name}-identified"
-    csv = out / "material.csv"
-    if csv.is_file():
-        return folder, None, csv
-    tmp = folder.parent / f".tmp-{uuid.uuid4().hex}"
-    res = identify_from_recordings(sorted((folder / "recordings").glob("*.csv")), out_csv=tmp / "material.csv",
-                                   progress=False, n_currents=N_CURRENTS)
-    (tmp / "identification.json").write_text(json.dumps(res.summary()))
-    try:
-        os.rename(tmp, out)
-    except OSError:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return folder, res, csv
+    return pytest.param(name, effects, seed, marks=marks, id=campaign_id(name, effects, seed))
 
 
 @pytest.fixture(scope="session")
@@ -105,7 +59,7 @@ def test_the_campaigns_cover_published_and_random_steels_and_every_effect():
 def _errors(shared, name, effects, seed):
     from solenoid_fmu.field import load_material
 
-    folder, res, csv = identified(shared, name, effects, seed)
+    _, csv = identified(shared, name, effects, seed)
     err = prediction_errors(load_material(csv), name)
     table = f"Psi %:\n{np.round(err['psi_rel'] * 100, 2)}\nF %:\n{np.round(err['F_rel'] * 100, 2)}"
     return err, table, json.loads((csv.parent / "identification.json").read_text())
@@ -125,7 +79,7 @@ def _guard(name, effects, seed):
         psi, F = SHORT_OF_GOAL[(name, seed)]
         marks = pytest.mark.xfail(reason=f"issue 20 open: measured Psi {psi} %, F {F} %, not half the literature "
                                          "curve's F error", strict=False)
-    return pytest.param(name, effects, seed, marks=marks, id=f"{name}-{effects or 'none'}-{seed}")
+    return pytest.param(name, effects, seed, marks=marks, id=campaign_id(name, effects, seed))
 
 
 @pytest.mark.slow

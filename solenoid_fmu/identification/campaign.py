@@ -101,7 +101,8 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
                 "recordings": [str(r.path) for r in flux],
                 "force_recordings": [str(r.path) for r in force_recs],
                 "notes": notes + fnotes + [f"left out {why}" for why in unusable],
-                "G_eddy_loops_S": details["G_eddy_S"], "resistance": details["resistance"]})
+                "G_eddy_loops_S": details["G_eddy_S"], "resistance": details["resistance"],
+                "resistance_tracks_used": details["heated"]})
             others_used = ()
             for w in res.extra["warnings"]:
                 print(f"identify: warning: {w}", file=sys.stderr)

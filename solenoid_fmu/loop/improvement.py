@@ -18,7 +18,12 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
    over all of them by ``min_gain`` while the fit-part estimate does not make the validation part
    worse (by more than a tenth of ``min_gain``; the diagnosis has already cross-validated its
    signature);
-4. repeat while an effect still pays, up to ``max_effects``. An effect rejected in step 3 is
+4. repeat while an effect still pays, up to ``max_effects``.
+
+Before step 1, coil heating is looked for where the flux residual cannot show it: a heating rate the
+campaign's resistance tracks measure significantly (:mod:`solenoid_fmu.loop.heating_evidence`) is
+added with ``C_th = alpha / kappa`` and kept unless the validation error grows (by more than a tenth
+of ``min_gain``); it is measured, not fitted to the residual, so it need not pay there. An effect rejected in step 3 is
    tried again after another effect was kept (the other one may have masked it: a large eddy
    residual spoils the heating fit until the ladder is in the model).
 
@@ -53,6 +58,7 @@ from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_MIN_NRMS, DEFAULT_THRESHOLD, diagnose
 from .effects import fit_eddy_ladder, fit_friction, fit_heating, fit_hysteresis, g_eddy_source
+from .heating_evidence import heating_from_resistance
 from .identifiability import not_identifiable
 from .metrics import full_scales, nrmse_fs
 from .residuals import FluxCache, cases_from_recordings, recording_name
@@ -179,6 +185,23 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
     cases = cases0 = _cases(tables, recordings, say, flux_of)
+    heat = None if "heating" in effects else heating_from_resistance(recordings, tables)
+    if heat is not None:
+        section, note = heat
+        say(f"heating from the resistance tracks: kappa {note['sigmas']:.1f} sigma above zero, "
+            f"C_th = {section['C_th_J_per_K']:.4g} J/K")
+        trial_fx = dict(effects, heating=section)
+        trial = with_effects(tables, trial_fx)
+        trial_cases = _cases(trial, recordings, say, flux_of)
+        before, after = _error(cases, val_names), _error(trial_cases, val_names)
+        ok = after <= (1.0 + 0.1 * min_gain) * before  # measured on its own: it need only not spoil the rest
+        steps.append(Step("heating", ok, params=section, heldout_before=before, heldout_after=after,
+                          note=json.dumps(dict(note, judged="resistance evidence; the validation error may not "
+                                                            "grow by more than a tenth of min_gain"))))
+        say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
+        if ok:
+            effects, tables, cases = trial_fx, trial, trial_cases
+        tried.add("heating")
     while sum(s.accepted for s in steps) < max_effects:
         d = diagnose(cases, threshold=threshold)
         diagnoses.append(d.as_dict())

@@ -30,6 +30,10 @@ from .tables import CharacteristicMaps
 RATE_SPREAD_LIMIT = 0.2
 #: Pooled R^2 below which one G_eddy is a poor description.
 R2_LIMIT = 0.9
+#: Pooled R^2 from which the eddy term counts as measured (:attr:`EddyFit.measurable`): it explains at
+#: least half the variance of ``i - i_f`` in the fast recordings. Below it the fitted G is what other
+#: effects leave (a hysteresis loop's current also changes sign with dPsi/dt: R^2 < 0 on such campaigns).
+R2_MEASURABLE = 0.5
 
 
 @dataclass
@@ -60,8 +64,13 @@ class EddyFit:
         current: the data scatter around zero; a negative conductance would feed energy in)."""
         return max(self.G_eddy_S, 0.0)
 
+    @property
+    def measurable(self) -> bool:
+        """True when the recordings show an eddy current: ``G_model_S > 0`` and pooled R^2 >= :data:`R2_MEASURABLE`."""
+        return self.G_model_S > 0.0 and self.r2 >= R2_MEASURABLE
+
     def as_dict(self) -> dict:
-        return {"G_eddy_S": self.G_eddy_S, "G_model_S": self.G_model_S, "r2": self.r2,
+        return {"G_eddy_S": self.G_eddy_S, "G_model_S": self.G_model_S, "r2": self.r2, "measurable": self.measurable,
                 "per_recording": self.per_recording,
                 "single_term_ok": self.single_term_ok, "message": self.message}
 

@@ -73,11 +73,14 @@ def fit_weights_and_shape(S: np.ndarray, y: np.ndarray, Phi: np.ndarray | None,
     if Phi is None:
         w, c, res = solve_w(S)
         return w, None, c, res
+    g = np.ones(Phi.shape[1])
     if C is not None:
-        # start from the fit without the correction, so adding it can only lower the residual
-        _, g, _, _ = fit_weights_and_shape(S, y, Phi, row_w, n_iter=n_iter, smooth=smooth)
-    else:
-        g = np.ones(Phi.shape[1])
+        # start from the fit without the correction, so adding it can only lower the residual; a
+        # single-valued error larger than the loops can leave nothing to that fit (then start from g = 1)
+        try:
+            _, g, _, _ = fit_weights_and_shape(S, y, Phi, row_w, n_iter=n_iter, smooth=smooth)
+        except HysteresisError:
+            g = np.ones(Phi.shape[1])
     prev = np.inf
     for _ in range(int(n_iter)):
         gb = Phi @ g

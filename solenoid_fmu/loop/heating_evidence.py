@@ -1,0 +1,62 @@
+"""Coil heating from the campaign's resistance tracks: evidence the flux residual alone cannot give.
+
+Within one recording a coil at realistic size warms by a tenth of a kelvin or so (C_th of a few hundred
+J/K, tens of joules per slow triangle): its eq.-4 drift is far below what a B(H) error of one per cent
+leaves in the flux residual, so :func:`solenoid_fmu.loop.effects.fit_heating` on that residual cannot
+tell it, and its gate cannot see it pay. The resistance itself can: the campaign's resistance tracks
+(:func:`solenoid_fmu.measure.campaign_resistance`: current plateaus, cycle closure, rests and the
+headers, one heating rate ``kappa = alpha / C_th`` [1/J] for the coil) measure it with its uncertainty.
+
+:func:`heating_from_resistance` turns a ``kappa`` above :data:`KAPPA_SIGNIFICANT` sigmas into the
+heating section of the model: ``C_th = alpha / kappa`` [J/K], ``R_th`` at the default of the residual
+fit (1 K/W: cooling is not identifiable from recordings of seconds), ``alpha`` the maps' coil value or
+copper's. The same recordings and threshold as the B(H) identification's choice of eq.-4 resistance
+(:func:`solenoid_fmu.identification.campaign_data.resistance_choice`): the slow ``flux`` recordings.
+"""
+
+from __future__ import annotations
+
+from ..errors import RecordingError
+from ..measure import campaign_resistance
+from ..realtime import COPPER_ALPHA_PER_K
+from .residuals import recording_name
+
+#: kappa must exceed this many of its sigmas (the identification's threshold).
+KAPPA_SIGNIFICANT = 3.0
+#: R_th [K/W] of the section (the default of the residual fit: not identifiable here).
+R_TH_DEFAULT_K_PER_W = 1.0
+
+
+def heating_from_resistance(recordings, tables) -> tuple[dict, dict] | None:
+    """The heating section from the resistance tracks of the ``flux`` recordings, or None.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+        The campaign; its ``flux`` recordings with a voltage column take part.
+    tables : MapTables
+        The model's maps (``coil.temperature_coefficient_per_K``, else copper's 0.00393 /K).
+
+    Returns
+    -------
+    (section, note) or None
+        ``section``: ``C_th_J_per_K``, ``R_th_K_per_W``, ``alpha_per_K``; ``note``: ``kappa_per_J``,
+        ``kappa_sigma_per_J``, ``sigmas``, ``recordings``. None when there is no such recording, the
+        tracks cannot be fitted, or ``kappa`` is not significant.
+    """
+    flux = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
+    if not flux:
+        return None
+    try:
+        camp = campaign_resistance(flux)
+    except RecordingError:
+        return None
+    kappa, sigma = float(camp.kappa_per_J), float(camp.kappa_sigma_per_J)
+    if not (sigma > 0.0 and kappa > KAPPA_SIGNIFICANT * sigma):
+        return None
+    coil = tables.meta.get("coil") or {}
+    alpha = float(coil.get("temperature_coefficient_per_K") or COPPER_ALPHA_PER_K)
+    section = {"C_th_J_per_K": alpha / kappa, "R_th_K_per_W": R_TH_DEFAULT_K_PER_W, "alpha_per_K": alpha}
+    note = {"from": "resistance tracks", "kappa_per_J": kappa, "kappa_sigma_per_J": sigma,
+            "sigmas": kappa / sigma, "recordings": [recording_name(r) for r in flux]}
+    return section, note
