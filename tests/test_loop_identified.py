@@ -59,13 +59,12 @@ def shared_campaigns(tmp_path_factory):
     return shared
 
 
-def loop_on_identified(shared, name, effects, seed, work) -> dict:
-    """The pipeline's identify -> maps + G_eddy -> loop, in memory; what it found and the pooled held-out
-    error of the bare identified model (no effect, no eddy term) and of the final one."""
-    folder, csv = identified(shared, name, effects, seed)
+def loop_on_identified_recordings(folder, curve, work) -> dict:
+    """The pipeline's maps + G_eddy -> loop on a campaign folder and an identified curve, in memory
+    (``work``: a folder for the maps the loop reads); what it found and the pooled held-out error of the
+    bare identified model (no effect, no eddy term) and of the final one."""
     recs = [read_recording(p) for p in sorted((folder / "recordings").glob("*.csv"))]
-    maps, eddy = campaign_maps(load_geometry(), load_material(csv), recs, preset="quick",
-                               name=f"{name}-identified")
+    maps, eddy = campaign_maps(load_geometry(), curve, recs, preset="quick", name="identified")
     save_maps(maps.with_eddy(None, source="bare"), work / "bare")
     save_maps(maps, work / "maps")
     flux_of = FluxCache()
@@ -77,6 +76,12 @@ def loop_on_identified(shared, name, effects, seed, work) -> dict:
             "tried": [(s.effect, s.accepted) for s in res.steps],
             "eddy_r2": None if eddy is None else eddy.r2,
             "before": math.sqrt(_error(bare, names)), "after": math.sqrt(_error(res.cases_after, names))}
+
+
+def loop_on_identified(shared, name, effects, seed, work) -> dict:
+    """:func:`loop_on_identified_recordings` on a campaign of :mod:`steelcampaigns`."""
+    folder, csv = identified(shared, name, effects, seed)
+    return loop_on_identified_recordings(folder, load_material(csv), work)
 
 
 @pytest.mark.slow
