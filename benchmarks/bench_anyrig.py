@@ -41,7 +41,7 @@ def _loop(tables, folder) -> tuple[list, float]:
     recs = [read_recording(p) for p in sorted((folder / "recordings").glob("*.csv"))]
     t0 = time.perf_counter()
     res = improve_tables(tables, recs)
-    return sorted(s.effect for s in res.steps if s.accepted), time.perf_counter() - t0
+    return sorted(s.effect for s in res.steps if s.accepted and not s.refit), time.perf_counter() - t0
 
 
 def main(n_loop: int = 24, n_pipeline: int = 2) -> dict:

@@ -81,6 +81,9 @@ PRESETS = {
 
 #: The maps sweep reaches at least this multiple of the largest |current| [A] in the campaign's recordings.
 CAMPAIGN_CURRENT_MARGIN = 1.25
+#: Kinds of recording whose voltage the second round corrects for the fitted heating: those the identification
+#: reads the flux or the coil's heating rate from (flux points, eddy split, heating rate: a ramp's hold pins it).
+HEATING_CORRECTED_KINDS = ("flux", "ramp", "eddy")
 
 
 class PipelineError(SolenoidError):
@@ -337,8 +340,8 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         heating = tables_from_fmu(res["improved_fmu"]).meta["effects"]["heating"] if heat else tried_heat
         corr_dir = out / "heating-corrected"
         corr_dir.mkdir(parents=True, exist_ok=True)
-        ident_recs = [heating_corrected(r, heating) if r.kind in ("flux", "eddy") else r for r in recs]
-        ident_paths = [write_recording(corr_dir / r.path.name, c) if r.kind in ("flux", "eddy") else r.path
+        ident_recs = [heating_corrected(r, heating) if r.kind in HEATING_CORRECTED_KINDS else r for r in recs]
+        ident_paths = [write_recording(corr_dir / r.path.name, c) if r.kind in HEATING_CORRECTED_KINDS else r.path
                        for r, c in zip(recs, ident_recs, strict=True)]
         ident_recs = [read_recording(p) for p in ident_paths]
         first_round = {"effects_added": res["effects_added"], "identification": ident.summary(),

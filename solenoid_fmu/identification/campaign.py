@@ -93,7 +93,9 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
             others_used = others
         else:
             eddy = [r for r in recs if r.kind == "eddy" and r.voltage_V is not None]
-            pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy)
+            # the coil's heating rate from every current-driven recording at a fixed stroke (a ramp's hold pins it)
+            heat = [r for r in recs if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
+            pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy, heat_recs=heat)
             fpts, fnotes = force_points(force_recs)
             fit = identify_joint(pts + fpts, geom, start, mesh_size, progress=cb, **kwargs)
             cc = details["strokes"][max(details["strokes"], key=lambda k: len(groups_of(flux)[k]))]["cc"]

@@ -14,6 +14,11 @@ hold on real campaigns"):
   closing and the opening pass (:func:`~.measured.force_stroke_curve`), sampled at
   :data:`FORCE_POSITIONS` positions. The force does not depend on the coil resistance, so it is
   immune to coil heating.
+- **Coil heating** (:func:`resistance_choice`): one heating rate ``kappa`` for the campaign's coil, from
+  the ``flux`` recordings and the other current-driven recordings at a fixed stroke (``ramp``,
+  ``eddy``). Unipolar triangles of a hysteretic steel do not close (the remanence is unknown), so in
+  them R at the start and kappa trade off within the header resistance's uncertainty; a ramp's
+  current hold (Psi constant while the current is held) gives R(t) itself and pins kappa for them.
 
 Uncertainty of a point (1 sigma, absolute): a relative floor (:data:`PSI_FLOOR_REL`,
 :data:`FORCE_FLOOR_REL`, of the value or of a fifth of the recording's largest value, whichever
@@ -129,15 +134,19 @@ def eddy_split(results) -> tuple[float, str]:
                f"{max(rates_A):.3g} A/s (taken out of the current before the branch mean)")
 
 
-def flux_points(recs, n_currents: int, choose, eddy_recs=()) -> tuple[list[MeasuredPoint], list[str], dict]:
+def flux_points(recs, n_currents: int, choose, eddy_recs=(),
+                heat_recs=()) -> tuple[list[MeasuredPoint], list[str], dict]:
     """Measured commutation-curve points at every stroke (see the module docstring).
 
     ``choose(i_A, psi_Wb, n)`` picks the currents (:func:`~.fit.choose_currents`); ``eddy_recs``
-    (fast triangles from rest) only help to tell eddy loops from hysteresis. Returns the
-    points, notes and per-stroke details (``curves``: commutation curves for the report).
+    (fast triangles from rest) only help to tell eddy loops from hysteresis; ``heat_recs`` (other
+    current-driven recordings at a fixed stroke: ramps, eddy triangles) only help to measure the coil's
+    heating. Returns the points, notes and per-stroke details (``curves``: commutation curves for the
+    report).
     """
     groups = groups_of(recs)
-    camp, heated, notes = resistance_choice(recs)
+    extra = [r for r in heat_recs if all(r is not q for q in recs)]
+    camp, heated, notes = resistance_choice([*recs, *extra])
     ccs = {key: commutation_curve(g, resistance=camp if heated else None) for key, g in groups.items()}
     all_results = [r for cc in ccs.values() for r in cc.results]
     for rec in eddy_recs:
@@ -179,7 +188,8 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=()) -> tuple[list[Measu
 
 
 def resistance_choice(recs) -> tuple:
-    """The campaign's resistance tracks (:func:`~solenoid_fmu.measure.campaign_resistance`) and whether
+    """The campaign's resistance tracks (:func:`~solenoid_fmu.measure.campaign_resistance`, one kappa for
+    all of ``recs``: the flux recordings and the other current-driven ones at a fixed stroke) and whether
     the eq.-4 flux must use them: the coil heats measurably (kappa above :data:`KAPPA_SIGNIFICANT`
     sigmas) or a header resistance disagrees with the data. Else the header resistance (measured
     before each run) is the better value: a single-cycle recording's track rests on it anyway, and

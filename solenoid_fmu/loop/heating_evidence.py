@@ -11,7 +11,8 @@ headers, one heating rate ``kappa = alpha / C_th`` [1/J] for the coil) measure i
 heating section of the model: ``C_th = alpha / kappa`` [J/K], ``R_th`` at the default of the residual
 fit (1 K/W: cooling is not identifiable from recordings of seconds), ``alpha`` the maps' coil value or
 copper's. The same recordings and threshold as the B(H) identification's choice of eq.-4 resistance
-(:func:`solenoid_fmu.identification.campaign_data.resistance_choice`): the slow ``flux`` recordings.
+(:func:`solenoid_fmu.identification.campaign_data.resistance_choice`): the current-driven recordings at a
+fixed stroke with a voltage (``flux``, ``ramp``, ``eddy``; a ramp's current hold pins R(t)).
 """
 
 from __future__ import annotations
@@ -23,17 +24,20 @@ from .residuals import recording_name
 
 #: kappa must exceed this many of its sigmas (the identification's threshold).
 KAPPA_SIGNIFICANT = 3.0
+#: Kinds of recording the heating rate is measured on (as the identification does).
+KINDS = ("flux", "ramp", "eddy")
 #: R_th [K/W] of the section (the default of the residual fit: not identifiable here).
 R_TH_DEFAULT_K_PER_W = 1.0
 
 
 def heating_from_resistance(recordings, tables) -> tuple[dict, dict] | None:
-    """The heating section from the resistance tracks of the ``flux`` recordings, or None.
+    """The heating section from the campaign's resistance tracks, or None.
 
     Parameters
     ----------
     recordings : list of Recording
-        The campaign; its ``flux`` recordings with a voltage column take part.
+        The campaign; its ``flux``, ``ramp`` and ``eddy`` recordings with a voltage column take part
+        (:data:`KINDS`; those whose armature moves are left out by the tracks themselves).
     tables : MapTables
         The model's maps (``coil.temperature_coefficient_per_K``, else copper's 0.00393 /K).
 
@@ -44,8 +48,8 @@ def heating_from_resistance(recordings, tables) -> tuple[dict, dict] | None:
         ``kappa_sigma_per_J``, ``sigmas``, ``recordings``. None when there is no such recording, the
         tracks cannot be fitted, or ``kappa`` is not significant.
     """
-    flux = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
-    if not flux:
+    flux = [r for r in recordings if r.kind in KINDS and r.voltage_V is not None]
+    if not any(r.kind == "flux" for r in flux):
         return None
     try:
         camp = campaign_resistance(flux)

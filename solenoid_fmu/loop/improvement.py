@@ -6,7 +6,8 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
    (:mod:`solenoid_fmu.loop.diagnosis`);
 2. take the best-ranked candidate that the model can add and has not tried, scoring at least
    :data:`TRY_THRESHOLD` (0.1; the verdict threshold of ``diagnose`` is 0.25, but here the held-out
-   gate of step 3 decides), while the residual is significant (``hysteresis``,
+   gate of step 3 decides) pooled over the signals or on one of them (:func:`_try_score`), while
+   the residual is significant (``hysteresis``,
    ``eddy`` as an eddy-current ladder, ``heating``, ``friction``; ``material`` and ``sensor`` are
    not model effects: a wrong B(H) is fixed by ``identify``, a sensor by calibration);
 3. fit its parameters on the *fit* part of the recordings
@@ -26,6 +27,13 @@ added with ``C_th = alpha / kappa`` and kept unless the validation error grows (
 of ``min_gain``); it is measured, not fitted to the residual, so it need not pay there. An effect rejected in step 3 is
    tried again after another effect was kept (the other one may have masked it: a large eddy
    residual spoils the heating fit until the ladder is in the model).
+
+When coil heating is kept, the effects kept before it that were fitted along the eq.-4 flux
+(hysteresis, eddy ladder: :data:`FLUX_FITTED`) were fitted to a flux that carried the heating's drift
+(the resistance measured before the run, while the coil warmed); they are fitted again along the
+heating-corrected flux (:func:`solenoid_fmu.loop.effects.heating_corrected`), then the heating itself
+on the residual the corrected effects leave, and each refit replaces the earlier fit if it lowers the
+validation error (steps marked ``refit``; :func:`_refit_after_heating`).
 
 Campaigns from any rig: the fit/validation split and the diagnosis's cross-validation folds go
 by the size of the excitations, not by file names (one ordering, :mod:`solenoid_fmu.loop.split`);
@@ -73,6 +81,8 @@ DEFAULT_MIN_GAIN = 0.10
 TRY_THRESHOLD = 0.1
 #: Effects with one or two fitted parameters (see the gate in :func:`improve_tables`).
 FEW_PARAMETERS = ("heating", "friction")
+#: Effects fitted along the measured eq.-4 flux, refitted when heating is kept (module docstring).
+FLUX_FITTED = ("hysteresis", "eddy")
 
 
 @dataclass
@@ -85,11 +95,13 @@ class Step:
     heldout_before: float = math.nan
     heldout_after: float = math.nan
     note: str = ""
+    #: True for a refit of an effect already kept (its parameters replace the earlier ones).
+    refit: bool = False
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "accepted": self.accepted, "params": self.params,
                 "heldout_error_before": self.heldout_before, "heldout_error_after": self.heldout_after,
-                "note": self.note}
+                "note": self.note, "refit": self.refit}
 
 
 class Improvement(NamedTuple):
@@ -202,16 +214,16 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         if ok:
             effects, tables, cases = trial_fx, trial, trial_cases
         tried.add("heating")
-    while sum(s.accepted for s in steps) < max_effects:
+    while len(_kept(steps)) < max_effects:
         d = diagnose(cases, threshold=threshold)
         diagnoses.append(d.as_dict())
         significant = any(v >= DEFAULT_MIN_NRMS for v in d.residual_nrms.values())
-        pick = next((c.effect for c in d.ranking if c.score >= try_threshold and c.effect in ADDABLE
+        pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
                      and c.effect not in tried and significant), None)
         if pick is None and significant:  # one recording's large residual may drown the others' evidence
             d = diagnose(cases, threshold=threshold, balanced=True)
             diagnoses.append(dict(d.as_dict(), balanced=True))
-            pick = next((c.effect for c in d.ranking if c.score >= try_threshold and c.effect in ADDABLE
+            pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
                          and c.effect not in tried), None)
         if pick is None:
             say("no further effect clears the diagnosis threshold")
@@ -221,7 +233,10 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
             steps.append(Step(pick, False, note=f"not identifiable from these recordings: {missing[pick]}"))
             say(f"{pick} is named by the diagnosis but not identifiable from these recordings: {missing[pick]}")
             continue
-        say(f"adding {pick} (diagnosis score {next(c.score for c in d.ranking if c.effect == pick):.3f})")
+        cand = next(c for c in d.ranking if c.effect == pick)
+        best_signal = max(cand.per_signal, key=cand.per_signal.get, default=None)
+        say(f"adding {pick} (diagnosis score {cand.score:.3f}"
+            + (f"; {best_signal} {cand.per_signal[best_signal]:.3f})" if best_signal else ")"))
         try:
             section, note, replaced = _fit_effect(pick, tables, effects, fit_recs,
                                                   [c for c in cases if c.name in fit_names], flux_of)
@@ -260,9 +275,91 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
         if ok:
             effects, tables, cases = trial_fx, trial, trial_cases
+            if pick == "heating":
+                run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
+                effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps,
+                                                              heat_on_all="judged" in note)
             # an effect rejected before may have been masked by the one just added: it may be tried again
-            tried = {s.effect for s in steps if s.accepted}
+            tried = set(_kept(steps))
     return Improvement(tables, steps, diagnoses, cases0, cases, missing)
+
+
+def _try_score(c) -> float:
+    """Diagnosis score from which a candidate is tried: its pooled score or its best signal's.
+
+    The pooled score is the share of *all* signals' residual energy an effect explains; an effect that
+    acts on one signal (eddy currents on the flux) is diluted by another signal's residual from another
+    cause (the force's), by as much as the signals' normalizations happen to weigh. The share of the one
+    signal it explains is evidence on its own; the held-out gate decides either way."""
+    return max([c.score, *c.per_signal.values()])
+
+
+def _kept(steps: list) -> list:
+    """The effects kept, in the order they were added (a refit adds none)."""
+    return list(dict.fromkeys(s.effect for s in steps if s.accepted))
+
+
+class _Run(NamedTuple):
+    """What the refits need of the loop's run: the recordings, their split, the flux cache, the progress."""
+
+    recordings: list
+    fit_recs: list
+    fit_names: set
+    val_names: set
+    flux_of: object
+    say: object
+
+
+def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: list, heat_on_all: bool):
+    """Heating was just kept: fit again what was fitted against the heating's drift (module docstring).
+
+    First the flux-fitted effects kept before it (:data:`FLUX_FITTED`), along the heating-corrected flux;
+    if one of them changed, the heating itself, on the residual the model without heating leaves now (its
+    first fit saw the misfit of an effect fitted to the drifting flux), and if that refit is kept, the
+    flux-fitted ones once more along the newly corrected flux. Each refit replaces the earlier fit if the
+    validation error falls (the heating's, when it was judged on all recordings: the error over all of
+    them). Appends a ``refit`` :class:`Step` per try; returns the (effects, tables, cases) after them.
+    """
+    def refit(effect: str) -> bool:
+        nonlocal effects, tables, cases
+        on_all = effect == "heating" and heat_on_all
+        recs = run.recordings if on_all else run.fit_recs
+        judged = run.val_names | run.fit_names if on_all else run.val_names
+        run.say(f"refitting {effect}" + ("" if effect == "heating" else " along the heating-corrected flux"))
+        try:
+            if effect == "heating":  # fitted on the residual of the model without it
+                base_fx = {k: v for k, v in effects.items() if k != ADDABLE["heating"]}
+                base = with_effects(tables, base_fx)
+                base_cases = _cases(base, recs, None, run.flux_of)
+                section, note, replaced = _fit_effect(effect, base, base_fx, recs, base_cases, run.flux_of)
+            else:
+                names = {recording_name(r) for r in recs}
+                section, note, replaced = _fit_effect(effect, tables, effects, recs,
+                                                      [c for c in cases if c.name in names], run.flux_of)
+        except ImproveError as exc:
+            steps.append(Step(effect, False, note=f"refit: {exc}", refit=True))
+            run.say(f"  refit failed, the earlier fit stays: {exc}")
+            return False
+        trial_fx = dict(effects, **{ADDABLE[effect]: section})
+        trial = with_effects(tables, trial_fx, **replaced)
+        trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+        before, after = _error(cases, judged), _error(trial_cases, judged)
+        ok = after < before
+        why = "on the residual of the model without heating" if effect == "heating" else \
+            "along the heating-corrected flux"
+        steps.append(Step(effect, ok, params=section, heldout_before=before, heldout_after=after,
+                          note=json.dumps(dict(note, refit=why)), refit=True))
+        run.say(f"  {'validation' if not on_all else 'all-recordings'} error {before:.3g} -> {after:.3g}: "
+                f"{'refit kept' if ok else 'earlier fit kept'}")
+        if ok:
+            effects, tables, cases = trial_fx, trial, trial_cases
+        return ok
+
+    flux_fitted = [e for e in FLUX_FITTED if ADDABLE[e] in effects]
+    if [refit(e) for e in flux_fitted].count(True) and refit("heating"):
+        for e in flux_fitted:
+            refit(e)
+    return effects, tables, cases
 
 
 def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
@@ -321,7 +418,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
                          "after_nrmse_fs": a.get("nrmse_fs")}
         rows.append({"file": rb["file"], "split": "fit" if rb["file"] in fit_names else "validate", "signals": sig})
     result = {"fmu": str(fmu_path), "improved_fmu": str(out_fmu), "maps": str(maps_dir),
-              "effects_added": [s.effect for s in steps if s.accepted], "steps": [s.as_dict() for s in steps],
+              "effects_added": _kept(steps), "steps": [s.as_dict() for s in steps],
               "not_identifiable": missing,
               "diagnoses": diagnoses, "recordings": rows, "before": before, "after": after}
     if report_dir is not None:

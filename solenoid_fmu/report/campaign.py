@@ -93,9 +93,12 @@ def write_campaign_report(path, name, summary, ident, res, before) -> Path:
                             for c in (summary["diagnosis"] or {}).get("ranking", [])]}},
         {"heading": "Improvement steps",
          "text": "Each effect is fitted on the 'fit' recordings and kept only if the error on the 'validate' "
-                 "recordings falls by at least 10 % (mean squared NRMSE by the full scale per kind, each capped at 1).",
+                 "recordings falls by at least 10 % (mean squared NRMSE by the full scale per kind, each capped at 1); "
+                 "a refit (of an effect fitted along the eq.-4 flux, once coil heating is in the model) replaces "
+                 "the earlier fit if that error falls.",
          "table": {"columns": ["effect", "kept", "validation error before", "after", "note"],
-                   "rows": [[st["effect"], "yes" if st["accepted"] else "no", st["heldout_error_before"],
+                   "rows": [[st["effect"] + (" (refit)" if st.get("refit") else ""), "yes" if st["accepted"] else "no",
+                             st["heldout_error_before"],
                              st["heldout_error_after"], note_text(st["note"])] for st in summary["improve_steps"]]}},
         {"heading": "Errors before and after improvement (RMS, SI units)",
          "table": errors_table(res["before"], res["after"])},
