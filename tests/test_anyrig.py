@@ -29,8 +29,9 @@ EXPECTED = {"hysteresis": "hysteresis", "eddy-ladder": "eddy", "heating": "heati
 #: The residual signal each effect shows in.
 AFFECTED = {"hysteresis": "psi_Wb", "eddy": "psi_Wb", "heating": "psi_Wb", "friction": "force_N"}
 SAMPLES = 4000  # per recording: bounds the test time, the protocol is run faster when it would exceed it
-#: 24 campaigns: each effect, two pairs, none and a sensor fault, three seeds each.
-CAMPAIGNS = [(fx, seed) for seed in (101, 202, 303) for fx in
+#: 8 campaigns: each effect, two pairs, none and a sensor fault, one seed each (the loop on the true maps;
+#: ``test_loop_identified.py`` runs it from identified maps on twelve more, ``bench_anyrig.py`` on further seeds).
+CAMPAIGNS = [(fx, seed) for seed in (101,) for fx in
              ("hysteresis", "eddy-ladder", "heating", "friction", "hysteresis,friction", "heating,eddy-ladder",
               "", "sensor")]
 

@@ -19,14 +19,16 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
    over all of them by ``min_gain`` while the fit-part estimate does not make the validation part
    worse (by more than a tenth of ``min_gain``; the diagnosis has already cross-validated its
    signature);
-4. repeat while an effect still pays, up to ``max_effects``.
+4. repeat while an effect still pays, up to ``max_effects``. An effect rejected in step 3 is
+   tried again after another effect was kept (the other one may have masked it: a large eddy
+   residual spoils the heating fit until the ladder is in the model).
 
 Before step 1, coil heating is looked for where the flux residual cannot show it: a heating rate the
 campaign's resistance tracks measure significantly (:mod:`solenoid_fmu.loop.heating_evidence`) is
 added with ``C_th = alpha / kappa`` and kept unless the validation error grows (by more than a tenth
-of ``min_gain``); it is measured, not fitted to the residual, so it need not pay there. An effect rejected in step 3 is
-   tried again after another effect was kept (the other one may have masked it: a large eddy
-   residual spoils the heating fit until the ladder is in the model).
+of ``min_gain``); it is measured, not fitted to the residual, so it need not pay there. Then C_th is
+fitted on the flux residual of all recordings, and that value replaces the tracks' where it cuts the
+error over all recordings by more than a tenth of ``min_gain`` (a drift large enough to measure it).
 
 When coil heating is kept, the effects kept before it that were fitted along the eq.-4 flux
 (hysteresis, eddy ladder: :data:`FLUX_FITTED`) were fitted to a flux that carried the heating's drift
@@ -213,6 +215,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
         if ok:
             effects, tables, cases = trial_fx, trial, trial_cases
+            run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
+            effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
+                                                          heating_first=True, min_fall=0.1 * min_gain)
         tried.add("heating")
     while len(_kept(steps)) < max_effects:
         d = diagnose(cases, threshold=threshold)
@@ -310,7 +315,8 @@ class _Run(NamedTuple):
     say: object
 
 
-def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: list, heat_on_all: bool):
+def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: list, heat_on_all: bool,
+                         heating_first: bool = False, min_fall: float = 0.0):
     """Heating was just kept: fit again what was fitted against the heating's drift (module docstring).
 
     First the flux-fitted effects kept before it (:data:`FLUX_FITTED`), along the heating-corrected flux;
@@ -319,6 +325,11 @@ def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: l
     flux-fitted ones once more along the newly corrected flux. Each refit replaces the earlier fit if the
     validation error falls (the heating's, when it was judged on all recordings: the error over all of
     them). Appends a ``refit`` :class:`Step` per try; returns the (effects, tables, cases) after them.
+
+    ``heating_first``: the heating was just added from the resistance tracks (nothing fitted along the
+    flux yet): only the heating is refitted on the flux residual, and it replaces the tracks' value if the
+    error falls by more than the fraction ``min_fall`` (where the drift within the recordings is large
+    enough to measure C_th better than the tracks do).
     """
     def refit(effect: str) -> bool:
         nonlocal effects, tables, cases
@@ -344,7 +355,7 @@ def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: l
         trial = with_effects(tables, trial_fx, **replaced)
         trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
         before, after = _error(cases, judged), _error(trial_cases, judged)
-        ok = after < before
+        ok = after < (1.0 - min_fall) * before
         why = "on the residual of the model without heating" if effect == "heating" else \
             "along the heating-corrected flux"
         steps.append(Step(effect, ok, params=section, heldout_before=before, heldout_after=after,
@@ -355,6 +366,9 @@ def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: l
             effects, tables, cases = trial_fx, trial, trial_cases
         return ok
 
+    if heating_first:
+        refit("heating")
+        return effects, tables, cases
     flux_fitted = [e for e in FLUX_FITTED if ADDABLE[e] in effects]
     if [refit(e) for e in flux_fitted].count(True) and refit("heating"):
         for e in flux_fitted:
