@@ -116,3 +116,26 @@ def test_a_negative_fit_gives_zero_for_the_model_never_a_negative_conductance(ma
     assert fit.G_model_S == 0.0
     assert "no measurable eddy current" in fit.message and not fit.single_term_ok
     assert fit.as_dict()["G_model_S"] == 0.0
+
+
+def test_eddy_term_counts_as_measured_only_when_the_current_grows_with_the_rate():
+    """A rate-independent loop regressed on dPsi/dt gives G_k = h / rate_k: its fitted current does not grow
+    with the rate, and it must not pass for an eddy current even where R^2 says little; an eddy current
+    (G_k = G) beside such a loop must, whatever R^2 the loop leaves."""
+    from solenoid_fmu.maps.eddy import EddyFit, rate_split
+
+    rates = [12.5, 25.0, 62.5, 125.0]
+
+    def fit(G, h, r2=-0.2):
+        per = [{"file": f"{r}.csv", "rate_A_per_s": r, "G_eddy_S": G + h / r, "r2": r2} for r in rates]
+        return EddyFit(float(np.mean([p["G_eddy_S"] for p in per])), r2, per)
+
+    G, H, top = rate_split(fit(4e-3, 0.04).per_recording)
+    assert G == pytest.approx(4e-3) and H == pytest.approx(0.04) and top == 125.0
+    assert fit(4e-3, 0.04).measurable  # eddy beside hysteresis (the demo campaign: R^2 -0.2)
+    assert not fit(0.0, 0.04).measurable  # hysteresis alone
+    assert not fit(1e-4, 0.04).measurable  # an eddy current smaller than the loop at the fastest rate
+    assert fit(1e-4, 0.04, r2=0.9).measurable  # R^2 alone suffices
+    assert not fit(-1e-3, 0.0, r2=0.9).measurable  # a negative conductance never counts
+    one_rate = EddyFit(4e-3, -0.2, fit(4e-3, 0.04).per_recording[:1])
+    assert rate_split(one_rate.per_recording) is None and not one_rate.measurable

@@ -28,7 +28,9 @@ campaign's resistance tracks measure significantly (:mod:`solenoid_fmu.loop.heat
 added with ``C_th = alpha / kappa`` and kept unless the validation error grows (by more than a tenth
 of ``min_gain``); it is measured, not fitted to the residual, so it need not pay there. Then C_th is
 fitted on the flux residual of all recordings, and that value replaces the tracks' where it cuts the
-error over all recordings by more than a tenth of ``min_gain`` (a drift large enough to measure it).
+error over all recordings by more than a tenth of ``min_gain`` (a drift large enough to measure it);
+once more at the end when hysteresis or an eddy ladder was added meanwhile (their part of the residual
+is then modelled).
 
 When coil heating is kept, the effects kept before it that were fitted along the eq.-4 flux
 (hysteresis, eddy ladder: :data:`FLUX_FITTED`) were fitted to a flux that carried the heating's drift
@@ -286,6 +288,13 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
                                                               heat_on_all="judged" in note)
             # an effect rejected before may have been masked by the one just added: it may be tried again
             tried = set(_kept(steps))
+    if heat is not None and steps[0].accepted and any(s.accepted and not s.refit and s.effect in FLUX_FITTED
+                                                      for s in steps[1:]):
+        # the heating from the tracks was refitted on the flux residual before the effects fitted along the
+        # flux were in: once more now that their part of the residual is modelled
+        run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
+        effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
+                                                      heating_first=True, min_fall=0.1 * min_gain)
     return Improvement(tables, steps, diagnoses, cases0, cases, missing)
 
 

@@ -34,6 +34,9 @@ R2_LIMIT = 0.9
 #: least half the variance of ``i - i_f`` in the fast recordings. Below it the fitted G is what other
 #: effects leave (a hysteresis loop's current also changes sign with dPsi/dt: R^2 < 0 on such campaigns).
 R2_MEASURABLE = 0.5
+#: Rates must differ by this factor to split the fitted current into a rate-proportional and a
+#: rate-independent part (:func:`rate_split`).
+RATE_RATIO_SPLIT = 2.0
 
 
 @dataclass
@@ -66,13 +69,36 @@ class EddyFit:
 
     @property
     def measurable(self) -> bool:
-        """True when the recordings show an eddy current: ``G_model_S > 0`` and pooled R^2 >= :data:`R2_MEASURABLE`."""
-        return self.G_model_S > 0.0 and self.r2 >= R2_MEASURABLE
+        """True when the recordings show an eddy current: ``G_model_S > 0`` and either the pooled R^2 is at
+        least :data:`R2_MEASURABLE` or the fitted current grows with the rate (:func:`rate_split`: its
+        rate-proportional part at the fastest rate at least as large as its rate-independent part; a
+        hysteresis loop's current does not grow with the rate, and it spoils R^2 where both are present)."""
+        if not self.G_model_S > 0.0:
+            return False
+        if self.r2 >= R2_MEASURABLE:
+            return True
+        split = rate_split(self.per_recording)
+        return split is not None and split[0] > 0.0 and split[0] * split[2] >= split[1]
 
     def as_dict(self) -> dict:
         return {"G_eddy_S": self.G_eddy_S, "G_model_S": self.G_model_S, "r2": self.r2, "measurable": self.measurable,
                 "per_recording": self.per_recording,
                 "single_term_ok": self.single_term_ok, "message": self.message}
+
+
+def rate_split(per_recording) -> tuple[float, float, float] | None:
+    """(G [S], H [A], fastest rate [A/s]) of ``G_k rate_k = G rate_k + H`` over the recordings: the part of
+    the eddy fits' current amplitude that grows with the current rate, and the part that does not (a
+    rate-independent loop regressed on dPsi/dt gives ``G_k ~ 1 / rate_k``). None unless there are two
+    recordings whose rates differ by at least :data:`RATE_RATIO_SPLIT`."""
+    rates = np.array([float(p["rate_A_per_s"]) for p in per_recording])
+    amp = np.array([float(p["G_eddy_S"]) for p in per_recording]) * rates
+    ok = np.isfinite(rates) & np.isfinite(amp) & (rates > 0.0)
+    rates, amp = rates[ok], amp[ok]
+    if rates.size < 2 or rates.max() < RATE_RATIO_SPLIT * rates.min():
+        return None
+    G, H = np.linalg.lstsq(np.column_stack([rates, np.ones_like(rates)]), amp, rcond=None)[0]
+    return float(G), float(H), float(rates.max())
 
 
 def _fit_origin(e: np.ndarray, y: np.ndarray) -> tuple[float, float]:
