@@ -45,8 +45,10 @@ def test_pipeline_finds_the_campaigns_true_effects_and_cuts_the_errors(demo):
     added, found = summary["effects_added"], summary["effects_found"]
     # all of them, nothing else (eddy: the maps' measured eddy term or the loop's ladder)
     assert "heating" in true_fx and found == sorted(true_fx) and set(added) <= true_fx, (added, found, true_fx)
-    # the identification saw the coil heat already in the first round (a ramp's hold pins the heating rate)
-    assert any("the coil heats" in n for n in summary["first_round"]["identification"]["notes"])
+    # the identification saw the coil heat (a ramp's hold pins the heating rate) and integrated eq. 4 with the
+    # resistance tracks, so no second, heating-corrected round was needed
+    assert any("the coil heats" in n for n in summary["identification"]["notes"])
+    assert summary["identification"]["resistance_tracks_used"] is True and summary["first_round"] is None
     # and the heat capacity fitted last is the truth's within 15 % (alpha is copper's, as the rig's)
     C_th = [st["params"]["C_th_J_per_K"] for st in summary["improve_steps"] if st["effect"] == "heating"
             and st["accepted"]][-1]
