@@ -25,8 +25,9 @@ The loop (issue 7), on a campaign of recordings and an FMU built from characteri
 
 Before step 1, coil heating is looked for where the flux residual cannot show it: a heating rate the
 campaign's resistance tracks measure significantly (:mod:`solenoid_fmu.loop.heating_evidence`) is
-added with ``C_th = alpha / kappa`` and kept unless the validation error grows (by more than a tenth
-of ``min_gain``); it is measured, not fitted to the residual, so it need not pay there. Then C_th is
+added with ``C_th = alpha / kappa`` and kept unless the validation error grows by ``min_gain`` or more
+(the margin an effect must gain to be kept); it is measured, not fitted to the residual, so it need not
+pay there (random-0's campaign: +1.2 % of the squared error with C_th 332 J/K against the truth's 300). Then C_th is
 fitted on the flux residual of all recordings, and that value replaces the tracks' where it cuts the
 error over all recordings by more than a tenth of ``min_gain`` (a drift large enough to measure it);
 once more at the end when hysteresis or an eddy ladder was added meanwhile (their part of the residual
@@ -210,10 +211,10 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         trial = with_effects(tables, trial_fx)
         trial_cases = _cases(trial, recordings, say, flux_of)
         before, after = _error(cases, val_names), _error(trial_cases, val_names)
-        ok = after <= (1.0 + 0.1 * min_gain) * before  # measured on its own: it need only not spoil the rest
+        ok = after <= (1.0 + min_gain) * before  # measured: kept unless rejected by the margin
         steps.append(Step("heating", ok, params=section, heldout_before=before, heldout_after=after,
-                          note=json.dumps(dict(note, judged="resistance evidence; the validation error may not "
-                                                            "grow by more than a tenth of min_gain"))))
+                          note=json.dumps(dict(note, judged="resistance evidence; kept unless the validation error "
+                                                            "grows by min_gain or more"))))
         say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
         if ok:
             effects, tables, cases = trial_fx, trial, trial_cases
