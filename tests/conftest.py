@@ -54,3 +54,12 @@ def rig_campaign(rig_maps):
         return sorted(str(p) for p in (final / "recordings").glob("*.csv"))
 
     return make
+
+
+@pytest.fixture(scope="session")
+def shared_campaigns(tmp_path_factory):
+    """The folder where :mod:`steelcampaigns` draws and identifies the truth-steel campaigns once per session
+    (shared by the xdist workers: the parent of their base temporary directories)."""
+    shared = tmp_path_factory.getbasetemp().parent / "steel-campaigns"
+    shared.mkdir(exist_ok=True)
+    return shared

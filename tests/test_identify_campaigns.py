@@ -43,13 +43,6 @@ def _strict(name, effects, seed):
     return pytest.param(name, effects, seed, marks=marks, id=campaign_id(name, effects, seed))
 
 
-@pytest.fixture(scope="session")
-def shared_campaigns(tmp_path_factory):
-    shared = tmp_path_factory.getbasetemp().parent / "steel-campaigns"
-    shared.mkdir(exist_ok=True)
-    return shared
-
-
 def test_the_campaigns_cover_published_and_random_steels_and_every_effect():
     published = {n for n, _, _ in CAMPAIGNS if is_published(n)}
     assert len(CAMPAIGNS) >= 12 and len(published) >= 6

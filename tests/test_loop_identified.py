@@ -55,13 +55,6 @@ def _param(name, effects, seed):
     return pytest.param(name, effects, seed, marks=marks, id=campaign_id(name, effects, seed))
 
 
-@pytest.fixture(scope="session")
-def shared_campaigns(tmp_path_factory):
-    shared = tmp_path_factory.getbasetemp().parent / "steel-campaigns"
-    shared.mkdir(exist_ok=True)
-    return shared
-
-
 def loop_on_identified_recordings(folder, curve, work) -> dict:
     """The pipeline's maps + G_eddy -> loop on a campaign folder and an identified curve, in memory
     (``work``: a folder for the maps the loop reads); what it found and the pooled held-out error of the

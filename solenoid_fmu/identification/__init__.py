@@ -1,6 +1,7 @@
 """identification: see the README's package map."""
 
 from .campaign import identify_from_recordings
+from .campaign_data import KAPPA_SIGNIFICANT
 from .fit import DEFAULT_MESH_SIZE, NLOPT_CODES, choose_currents, identify_bh, nlopt_code_name
 from .flux_model import FluxModel, fem_flux, fem_force_vs_stroke
 from .io import write_curve_files
@@ -10,6 +11,7 @@ from .report import write_report
 from .result import IdentificationResult
 
 __all__ = [
+    "KAPPA_SIGNIFICANT",
     "DEFAULT_MESH_SIZE",
     "NLOPT_CODES",
     "FluxModel",

@@ -7,7 +7,7 @@ tell it, and its gate cannot see it pay. The resistance itself can: the campaign
 (:func:`solenoid_fmu.measure.campaign_resistance`: current plateaus, cycle closure, rests and the
 headers, one heating rate ``kappa = alpha / C_th`` [1/J] for the coil) measure it with its uncertainty.
 
-:func:`heating_from_resistance` turns a ``kappa`` above :data:`KAPPA_SIGNIFICANT` sigmas into the
+:func:`heating_from_resistance` turns a ``kappa`` above the identification's ``KAPPA_SIGNIFICANT`` sigmas into the
 heating section of the model: ``C_th = alpha / kappa`` [J/K], ``R_th`` at the default of the residual
 fit (1 K/W: cooling is not identifiable from recordings of seconds), ``alpha`` the maps' coil value or
 copper's. The same recordings and threshold as the B(H) identification's choice of eq.-4 resistance
@@ -18,12 +18,11 @@ fixed stroke with a voltage (``flux``, ``ramp``, ``eddy``; a ramp's current hold
 from __future__ import annotations
 
 from ..errors import RecordingError
+from ..identification import KAPPA_SIGNIFICANT
 from ..measure import campaign_resistance
 from ..realtime import COPPER_ALPHA_PER_K
 from .residuals import recording_name
 
-#: kappa must exceed this many of its sigmas (the identification's threshold).
-KAPPA_SIGNIFICANT = 3.0
 #: Kinds of recording the heating rate is measured on (as the identification does).
 KINDS = ("flux", "ramp", "eddy")
 #: R_th [K/W] of the section (the default of the residual fit: not identifiable here).
