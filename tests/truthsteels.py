@@ -124,9 +124,24 @@ def _geometry():
     return load_geometry()
 
 
+#: fem_values already computed in this process, by (curve table, mesh size): the literature curve is
+#: scored against every truth, and its FEM values do not depend on the truth.
+_FEM_CACHE: dict = {}
+
+
 def fem_values(curve: BHCurve, mesh_size: float = DEFAULT_MESH_SIZE) -> tuple[np.ndarray, np.ndarray]:
     """(Psi [Wb], F [N]) of ``curve`` at the yardstick's points, shape (5, 4): the identification's FEM
-    (one mesh at mid-stroke, morphed), a sweep over the currents warm-started at each stroke."""
+    (one mesh at mid-stroke, morphed), a sweep over the currents warm-started at each stroke (cached
+    per process by the curve's table, so a curve scored against several truths is solved once)."""
+    key = (np.asarray(curve.B_T, dtype=float).tobytes(), np.asarray(curve.H_A_per_m, dtype=float).tobytes(),
+           float(mesh_size))
+    if key not in _FEM_CACHE:
+        _FEM_CACHE[key] = _fem_values(curve, mesh_size)
+    psi, force = _FEM_CACHE[key]
+    return psi.copy(), force.copy()
+
+
+def _fem_values(curve: BHCurve, mesh_size: float) -> tuple[np.ndarray, np.ndarray]:
     solver = Solver(_geometry(), curve, mesh_size)
     psi = np.empty((len(EVAL_CURRENTS_A), len(EVAL_STROKES_M)))
     force = np.empty_like(psi)

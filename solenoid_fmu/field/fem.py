@@ -45,6 +45,9 @@ from .linear_solver import SPDSolver
 from .material import NU_0, BHCurve
 from .mesh import MorphMesh, build_mesh
 
+#: Gaps whose quadrature data a solver keeps (about 10 MB each at mesh size 2.0).
+CONFIG_CACHE = 16
+
 #: Newton settings (tolerances relative to the source norm / the solution norm). Converged means
 #: |r| <= max(NEWTON_RTOL |f|, NEWTON_FLOOR_FACTOR eps | |K_s| |u| + |f| |) (2-norms over the free dofs): the
 #: residual r = K_s(u) u - f (K_s the secant stiffness it is assembled from) cannot be computed more exactly than
@@ -242,7 +245,7 @@ class Solver:
         # the moving (armature) elements and the eggshell weight for the Maxwell-stress force
         self.moving_elements = np.isin(mm.region, [k for k, r in enumerate(geometry.regions) if r.moves])
         self._pattern(linear_backend)
-        self._config: _Config | None = None
+        self._configs: dict[float, _Config] = {}  # the last CONFIG_CACHE gaps, oldest first
         self.solves = 0
         #: Relative residual target of Newton; None: NEWTON_RTOL (callers that need less, e.g. the
         #: identification, raise it).
@@ -276,10 +279,15 @@ class Solver:
         return _scatter_vector(self, local, sel)
 
     def config(self, x_m: float) -> _Config:
-        """Quadrature data at gap ``x_m`` (cached for the last gap asked for)."""
-        if self._config is None or self._config.x_m != x_m:
-            self._config = _Config(self, x_m)
-        return self._config
+        """Quadrature data at gap ``x_m`` (cached for the last :data:`CONFIG_CACHE` gaps asked for: the
+        identification returns to the same strokes and force offsets at every evaluation)."""
+        cfg = self._configs.pop(x_m, None)
+        if cfg is None:
+            cfg = _Config(self, x_m)
+            while len(self._configs) >= CONFIG_CACHE:
+                self._configs.pop(next(iter(self._configs)))
+        self._configs[x_m] = cfg  # most recent last
+        return cfg
 
     # -- material evaluation -----------------------------------------------------------------
     def _nu(self, b2: np.ndarray):

@@ -6,11 +6,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from tqdm import tqdm
 
 from ..errors import RecordingError
 from ..measure import commutation_curve, read_recording
-from .campaign_data import flux_points, force_points
+from .campaign_data import HOLD_KINDS, flux_points, force_points, hold_points
 from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
 from .flux_model import as_curve, as_geometry
 from .io import write_curve_files
@@ -97,6 +99,11 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
             heat = [r for r in recs if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
             pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy, heat_recs=heat)
             fpts, fnotes = force_points(force_recs)
+            hold_recs = [r for r in recs if r.kind in HOLD_KINDS and r.voltage_V is not None]
+            remanence = max((float(np.max(d["half_width_Wb"], initial=0.0)) for d in details["strokes"].values()),
+                            default=0.0)
+            hpts, hnotes = hold_points(hold_recs, details["camp"], details["heated"], 2.0 * remanence)
+            fpts, fnotes = fpts + hpts, fnotes + hnotes
             fit = identify_joint(pts + fpts, geom, start, mesh_size, progress=cb, **kwargs)
             cc = details["strokes"][max(details["strokes"], key=lambda k: len(groups_of(flux)[k]))]["cc"]
             res = result_from_joint(fit, start, mesh_size, {

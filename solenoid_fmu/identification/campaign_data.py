@@ -14,6 +14,10 @@ hold on real campaigns"):
   closing and the opening pass (:func:`~.measured.force_stroke_curve`), sampled at
   :data:`FORCE_POSITIONS` positions. The force does not depend on the coil resistance, so it is
   immune to coil heating.
+- **Holds** (``ramp`` and ``voltage_step`` recordings at a fixed stroke with voltage,
+  :func:`hold_points`): where the current holds still, dPsi/dt = 0, so there is no eddy current and the
+  current is the magnetizing one; Psi by eq. 4 up to the hold and, with a force column, the holding force
+  give static points, often at currents above the flux recordings' peaks (a ramp to the rated current).
 - **Coil heating** (:func:`resistance_choice`): one heating rate ``kappa`` for the campaign's coil, from
   the ``flux`` recordings and the other current-driven recordings at a fixed stroke (``ramp``,
   ``eddy``). Unipolar triangles of a hysteretic steel do not close (the remanence is unknown), so in
@@ -39,11 +43,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RecordingError
-from ..measure import campaign_resistance, commutation_curve, flux_linkage, peak_curves
+from ..measure import campaign_resistance, commutation_curve, flux_linkage, hold_segments, peak_curves
 from .measured import force_stroke_curve, groups_of
 
 __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
-           "flux_points", "force_points", "eddy_split", "resistance_choice",
+           "flux_points", "force_points", "hold_points", "HOLD_KINDS", "eddy_split", "resistance_choice",
            "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN"]
 
 #: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
@@ -59,6 +63,8 @@ EDDY_RATE_SPREAD = 2.0
 #: Below this many loop half-widths (in current) the branch mean is no estimate of the curve at all
 #: (the descending branch ends at the remanence): there the whole half-width counts as its uncertainty.
 LOOP_NEAR_ORIGIN = 3.0
+#: Kinds of recordings whose current holds give static points (:func:`hold_points`).
+HOLD_KINDS = ("ramp", "voltage_step")
 #: Positions taken from each force-stroke curve (evenly over the range passed both ways).
 FORCE_POSITIONS = 3
 
@@ -184,7 +190,8 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
         band = np.minimum((np.arange(n) * 3) // max(n, 1), 2)
         points = [MeasuredPoint(p.kind, p.i_A, p.x_m, p.value, p.sigma, f"{p.group}/band{b}", p.source)
                   for p, b in zip(points, band, strict=True)]
-    return points, notes, {"G_eddy_S": G, "strokes": details, "resistance": camp.summary(), "heated": heated}
+    return points, notes, {"G_eddy_S": G, "strokes": details, "resistance": camp.summary(), "heated": heated,
+                             "camp": camp}
 
 
 def resistance_choice(recs) -> tuple:
@@ -260,4 +267,68 @@ def force_points(recs) -> tuple[list[MeasuredPoint], list[str]]:
         name = rec.path.name if rec.path else rec.label()
         for xv, fv, sv in zip(xs, Fs, sig, strict=True):
             points.append(MeasuredPoint("force", fc["i_A"], float(xv), float(fv), float(sv), f"force:{name}", name))
+    return points, notes
+
+
+def hold_points(recs, camp=None, heated: bool = False, remanence_Wb: float = 0.0
+                ) -> tuple[list[MeasuredPoint], list[str]]:
+    """Static points at the current holds of ``recs`` (``ramp``, ``voltage_step``: one stroke, with voltage).
+
+    At a settled hold (:func:`~solenoid_fmu.measure.hold_segments`) dPsi/dt = 0: no eddy current, the
+    current is the magnetizing one and the point lies at the tip of the recording's loop (on the
+    commutation curve). Psi [Wb]: the mean of eq. 4 over the hold, integrated from the rest before it
+    (with the campaign's R(t) track where the coil heats, ``heated``, else the header's R), with the
+    resistance the hold itself shows (U = R i there: a slope of Psi over the hold is the error of the R
+    used, and corrects Psi by that error times the charge int i dt), 1-sigma from :data:`PSI_FLOOR_REL`,
+    the track's own uncertainty, the hold's resistance uncertainty, the voltage noise integrated up to the
+    hold (a random walk), the offset's error and ``remanence_Wb`` (the unknown remanence the integral starts from: the
+    flux recordings' loop width; 0 for a steel without hysteresis). Force [N] (with a force column):
+    the mean holding force, 1-sigma :data:`FORCE_FLOOR_REL`. Recordings that do not start at rest with a
+    measured voltage offset, or have no hold, are left out with a note. Group: ``hold:<file>``.
+    """
+    points, notes = [], []
+    for rec in recs:
+        name = rec.path.name if rec.path else rec.label()
+        if rec.voltage_V is None:
+            continue
+        track = camp.track_for(rec) if heated and camp is not None else None
+        try:
+            fr = flux_linkage(rec, resistance=track)
+            segs = hold_segments(rec)
+        except RecordingError as exc:
+            notes.append(f"hold: left out {name}: {exc}")
+            continue
+        if not (fr.starts_at_rest and fr.offset_measured):
+            notes.append(f"hold: left out {name}: it does not start at rest with a measured voltage offset")
+            continue
+        x = float(np.median(rec.positions_m()))
+        track_rel = 0.0
+        if fr.track is not None and fr.track.psi_peak_Wb:
+            track_rel = fr.track.psi_peak_sigma_Wb / abs(fr.track.psi_peak_Wb)
+        n0 = len(points)
+        t, ic = fr.time_s, fr.current_A
+        charge = np.concatenate([[0.0], np.cumsum(0.5 * (ic[1:] + ic[:-1]) * np.diff(t))])  # int i dt [A s]
+        for sl in segs:
+            i = float(np.mean(ic[sl]))
+            if i <= 0.0 or sl.stop - sl.start < 4:
+                continue
+            # the resistance at the hold: there U = R i, so a slope of Psi is the error of the R used
+            (slope, _), cov = np.polyfit(t[sl] - t[sl].mean(), fr.psi_Wb[sl], 1, cov=True)
+            dR, dR_sigma = slope / i, float(np.sqrt(max(cov[0, 0], 0.0))) / i
+            q = float(np.mean(charge[sl]))
+            psi = float(np.mean(fr.psi_Wb[sl])) - dR * q
+            # the voltage noise integrated up to the hold (a random walk) and the offset's own error
+            u = rec.voltage_V[sl]
+            u_noise = float(np.std(np.diff(u))) / np.sqrt(2.0)
+            t_hold = float(np.mean(t[sl]) - t[0])
+            walk = u_noise * np.sqrt(float(np.median(np.diff(t))) * t_hold)
+            offset = fr.offset_uncertainty_Wb * t_hold / max(float(t[-1] - t[0]), 1e-12)
+            sig = float(np.sqrt((PSI_FLOOR_REL * psi) ** 2 + (track_rel * psi) ** 2 + remanence_Wb**2
+                                + (dR_sigma * q) ** 2 + walk**2 + offset**2))
+            points.append(MeasuredPoint("psi", i, x, psi, sig, f"hold:{name}", name))
+            if rec.force_N is not None:
+                F = float(np.mean(rec.force_N[sl]))
+                points.append(MeasuredPoint("force", i, x, F, FORCE_FLOOR_REL * abs(F), f"hold:{name}", name))
+        if len(points) == n0:
+            notes.append(f"hold: left out {name}: no settled current hold")
     return points, notes

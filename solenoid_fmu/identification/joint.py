@@ -34,7 +34,7 @@ from .fit import projected_lm
 from .parametrization import fit_to_curve, project_unimodal, scaled_curve, with_peak_of
 from .point_model import PointModel
 
-__all__ = ["JointFit", "identify_joint", "held_out_residuals", "PRIOR_WEIGHTS", "node_values", "node_theta"]
+__all__ = ["JointFit", "identify_joint", "stage2_range", "held_out_residuals", "PRIOR_WEIGHTS", "node_values", "node_theta"]
 
 #: Weights of the stage-2 prior (per unit of ln chi curvature, in units of one point's sigma).
 PRIOR_WEIGHTS = (1.0,)
@@ -45,6 +45,25 @@ STAGE1_NFEV = 8
 HELD_OUT_TRUST = 0.5
 #: Weight of the distance to stage 1 inside the prior, beside the curvature.
 PRIOR_RIDGE = 0.3
+#: Stage 2's log-H grid [A/m]: from STAGE2_H_RANGE_A_PER_M[0], or a quarter of the field strength where the
+#: stage-1 curve's susceptibility peaks if that is lower (the knee of pure iron and nickel steels lies near
+#: 10-20 A/m: on a grid from 50 A/m such a steel's own curve, projected into the model, predicted Psi 3 %
+#: and F 6.5 % off), to STAGE2_H_RANGE_A_PER_M[1] (deep saturation), nodes at most a factor
+#: STAGE2_NODE_RATIO apart (at least m of them).
+STAGE2_H_RANGE_A_PER_M = (50.0, 2e5)
+STAGE2_NODE_RATIO = 2.0
+#: Bounds of stage 1's polarization scale and H stretch (factors): the stretch spans steels whose knee
+#: lies 20x below or above the start curve's.
+STAGE1_SCALE = (0.6, 1.4)
+STAGE1_STRETCH = (0.01, 20.0)
+
+
+def stage2_range(curve) -> tuple[float, float]:
+    """(lowest, highest) node [A/m] of stage 2's grid for a stage-1 curve (see :data:`STAGE2_H_RANGE_A_PER_M`)."""
+    H = np.geomspace(1.0, 1e6, 600)
+    chi = curve.mu_r_differential(curve.B_of_H(H)) - 1.0
+    H_peak = float(H[int(np.argmax(chi))])
+    return min(STAGE2_H_RANGE_A_PER_M[0], H_peak / 4.0), STAGE2_H_RANGE_A_PER_M[1]
 
 
 def node_values(model, theta) -> np.ndarray:
@@ -156,7 +175,8 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 
     cands = {}
     # stage 1
     pm.curve_fn = lambda p: scaled_curve(start_curve, p[0], p[1])
-    lo1, hi1 = np.array([np.log(0.6), np.log(0.2)]), np.array([np.log(1.4), np.log(5.0)])
+    lo1 = np.log([STAGE1_SCALE[0], STAGE1_STRETCH[0]])
+    hi1 = np.log([STAGE1_SCALE[1], STAGE1_STRETCH[1]])
     st1 = projected_lm(res, jac, np.zeros(2), lo1, hi1, min(max_nfev, STAGE1_NFEV))
     r1 = res(st1.x)
     J1 = jac(st1.x)
@@ -169,7 +189,9 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 
                         "status": st1.message}
     # stage 2, in node values v = (ln chi at the nodes, tail slope): each parameter acts locally, the
     # unimodal projection is an isotonic fit of v itself, the prior a second difference of v
-    model, theta1 = fit_to_curve(curve1, m=m)
+    H_range = stage2_range(curve1)
+    m = max(m, int(np.ceil(np.log(H_range[1] / H_range[0]) / np.log(STAGE2_NODE_RATIO))) + 1)
+    model, theta1 = fit_to_curve(curve1, m=m, H_range=H_range)
     v1 = node_values(model, project_unimodal(model, theta1))
     pm.curve_fn = lambda v: model.curve(node_theta(v))
     D = np.vstack([node_smoothness(m), PRIOR_RIDGE * np.eye(m + 1)])

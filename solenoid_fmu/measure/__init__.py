@@ -1,6 +1,7 @@
 """measure: see the README's package map."""
 
 from .branches import FluxBranch, peak_curves
+from .conditioning import hold_segments
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
 from .reader import read_recording, validate_recording
@@ -25,6 +26,7 @@ __all__ = [
     "closure_problems",
     "commutation_curve",
     "flux_linkage",
+    "hold_segments",
     "make_recording",
     "peak_curves",
     "read_recording",

@@ -19,7 +19,7 @@ from ..errors import RecordingError
 from .format import Recording
 
 __all__ = ["Conditioned", "condition", "noise_std", "smooth", "rest_runs", "stationary", "offset_model",
-           "plateaus"]
+           "plateaus", "hold_segments"]
 
 
 def noise_std(y: np.ndarray) -> float:
@@ -217,3 +217,12 @@ def condition(rec: Recording) -> Conditioned:
     return Conditioned(t=t, uc=uc, ic=i - i_off, i_s=i_s, offset=offset, drift_V_per_s=float(b),
                        offset_se_V=offset_se, current_offset_A=i_off, n_anchors=n_anchors, head=head, tail=tail,
                        dt=dt, sigma_i=sigma_i, i_max=i_max, thr=thr, k_smooth=k_smooth, notes=notes)
+
+
+def hold_segments(rec: Recording) -> list[slice]:
+    """The settled current holds of a recording with voltage: one slice per plateau (the second half of
+    each run where |i| > 10 % of the peak holds still for >= 50 ms, :meth:`Conditioned.plateau_mask`),
+    in time order. There dPsi/dt = 0: no eddy current, and U = R i."""
+    mask = condition(rec).plateau_mask()
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
