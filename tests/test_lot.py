@@ -2,7 +2,7 @@
 the outlier rule, restart after a kill, failing units, bad input.
 
 The lot (``tests/lotdata.py``): 8 units of PS45 around the nominal steel DC03 with batch variation (B ~1 %,
-coil resistance 0.3 %), 2 of them with an undeclared in-spec effect (hysteresis, eddy ladder), 3 out of spec
+coil resistance 0.3 %), 2 of them with an undeclared in-spec effect (coil heating, eddy ladder), 3 out of spec
 (another steel, 4 x friction, 0.85 x the turns), plus a unit with a malformed recording. Truth maps shipped in
 ``tests/data/lot-truths/`` (per-stroke meshes of size 0.7; the identification's differ). Every unit runs the
 pipeline's ``smoke`` preset.
@@ -18,10 +18,10 @@ import sys
 import time
 from pathlib import Path
 
+import lotdata
 import numpy as np
 import pytest
 
-import lotdata
 from solenoid_fmu.lot import FEATURES, RULE, LotError, run_batch, unit_complete
 from solenoid_fmu.lot import execute as lot_execute
 from solenoid_fmu.lot.outliers import robust_z, stand_out

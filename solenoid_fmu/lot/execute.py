@@ -56,6 +56,18 @@ def connect(address: str):
         raise LotError(f"cannot reach the Dask scheduler at {address!r}: {' '.join(str(exc).split())}") from None
 
 
+def _check_workers(client) -> None:
+    """Say what the cluster offers: no worker yet (the units wait for one), or workers running several units at
+    once in one process (threads: the figures' matplotlib is not thread-safe; start them with ``--nthreads 1``)."""
+    workers = client.scheduler_info().get("workers", {})
+    if not workers:
+        _say(f"lot: the scheduler {client.scheduler.address} has no worker yet; the units wait for one")
+    threaded = sorted(w.get("name", a) for a, w in workers.items() if w.get("nthreads", 1) > 1)
+    if threaded:
+        _say(f"lot: note: {len(threaded)} worker(s) have more than one thread and run several units in one process; "
+             "start workers with --nthreads 1 (one unit per process)")
+
+
 def _say(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
@@ -104,6 +116,8 @@ def run_batch(campaign_dirs, out_dir, *, scheduler: str = "local", workers: int 
         if out.resolve().is_relative_to(folder.resolve()):
             raise LotError(f"-o {out_dir} is inside the campaign folder {folder}")
     client = None if scheduler == "local" else connect(scheduler)  # before any work: a bad address fails at once
+    if client is not None and progress:
+        _check_workers(client)
     out.mkdir(parents=True, exist_ok=True)
     try:
         with dir_lock(out):
@@ -141,7 +155,7 @@ def _run(units, out: Path, client, workers, preset, geometry_text, progress, t0)
             futures = {client.submit(run_unit, n, inputs[n][1], preset=preset, geometry_text=geometry_text,
                                      campaign_label=str(inputs[n][0]), input_sha256=inputs[n][2], pure=False,
                                      key=f"solenoid-unit-{n}-{inputs[n][2][:12]}"): n for n in todo}
-            done_iter = as_completed(list(futures))
+            done_iter = as_completed(list(futures), loop=client.loop)
         for fut in done_iter:
             name = futures[fut]
             try:

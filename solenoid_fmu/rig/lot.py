@@ -14,7 +14,7 @@ A unit (:class:`LotUnit`) is one of
   ``c_a`` (the rise of the permeability) log-normal with :data:`BATCH_SIGMA_CA` (3 %); the coil resistance
   at 20 degC with :data:`BATCH_SIGMA_R` (0.3 %); the friction force around :data:`NOMINAL_FRICTION_N`
   with 5 %;
-* ``effect``: a nominal unit whose truth has an undeclared, in-spec effect (hysteresis, eddy ladder):
+* ``effect``: a nominal unit whose truth has an undeclared, in-spec effect (coil heating, eddy ladder):
   the model must take it on, the lot must not flag it;
 * ``out-of-spec``: ``steel`` (another published steel, B 10-25 % lower than the nominal's over the
   working range), ``friction`` (:data:`HIGH_FRICTION_FACTOR` x the nominal friction), ``turns`` (a
@@ -120,7 +120,7 @@ def unit_steel(nominal: RoschkeParameters, rng: np.random.Generator, name: str) 
                                label=f"{nominal.label}, batch draw {name}", record="lot batch draw")
 
 
-def plan_lot(n: int = 10, seed: int = 0, *, nominal: str = "DC03", effects=("hysteresis", "eddy-ladder"),
+def plan_lot(n: int = 10, seed: int = 0, *, nominal: str = "DC03", effects=("heating", "eddy-ladder"),
              out_of_spec=("steel", "friction", "turns"), other_steel: str = "9SMn28K") -> list[LotUnit]:
     """Draw what each unit of a lot is (module docstring): ``n`` units, the last ``len(out_of_spec)`` out of
     spec, the ``len(effects)`` before them with one undeclared effect each, the rest nominal.
