@@ -14,6 +14,9 @@ from solenoid_fmu.rig.lot import draw_lot, plan_lot
 
 DATA = Path(__file__).resolve().parent / "data"
 LOT_TRUTHS_DIR = DATA / "lot-truths"
+#: The lot's nominal steel (DC03's published Roschke table): where every unit's identification starts
+#: (``solenoid-fmu batch --start-material``), as a valve maker starts from the steel's datasheet.
+NOMINAL_STEEL_CSV = DATA / "truth-steels" / "DC03" / "steel.csv"
 #: Units and seed of the test lot (3 nominal, 2 with an undeclared effect, 3 out of spec).
 N_UNITS = 8
 SEED = 23

@@ -24,7 +24,7 @@ import pytest
 
 from solenoid_fmu.lot import FEATURES, RULE, LotError, run_batch, unit_complete
 from solenoid_fmu.lot import execute as lot_execute
-from solenoid_fmu.lot.outliers import robust_z, stand_out
+from solenoid_fmu.lot.outliers import Z_THRESHOLD, robust_z, stand_out
 from solenoid_fmu.lot.units import input_sha256, publish_unit, remove_leftovers
 
 OUT_OF_SPEC = {u.name for u in lotdata.plan() if u.kind == "out-of-spec"}
@@ -36,9 +36,9 @@ BAD = "u09-bad"
 def test_robust_z_flags_the_far_values_and_the_floor_keeps_a_tight_lot_quiet():
     v = [1.00, 1.01, 0.99, 1.005, 0.995, 1.15]  # five within 1 %, one 15 % off
     z = robust_z(v)
-    assert abs(z[-1]) > 3.5 and np.all(np.abs(z[:-1]) < 3.5)
+    assert abs(z[-1]) > Z_THRESHOLD and np.all(np.abs(z[:-1]) < Z_THRESHOLD)
     tight = [1.0, 1.0 + 1e-9, 1.0 - 1e-9, 1.0 + 2e-9, 1.0 + 0.01]  # MAD ~1e-9: the floor (0.5 % of 1) decides
-    assert np.all(np.abs(robust_z(tight)) < 3.5)
+    assert np.all(np.abs(robust_z(tight)) < Z_THRESHOLD)
     rows = [{"unit": f"u{k}", "a": x, "friction_N": 1.0} for k, x in enumerate(v)]
     assert [u for u, f in stand_out(rows, ["a", "friction_N"]).items() if f["flagged_by"]] == ["u5"]
 
@@ -115,7 +115,7 @@ def local_run(lot):
     out = base / "out-local"
     names = [d.name for d in dirs]
     cmd = [sys.executable, "-m", "solenoid_fmu", "batch", *map(str, dirs), "-o", str(out), "--workers", "2",
-           "--preset", "smoke"]
+           "--preset", "smoke", "--start-material", str(lotdata.NOMINAL_STEEL_CSV)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 600
     while len(_complete(out, names)) < 2 and proc.poll() is None and time.monotonic() < deadline:
@@ -124,7 +124,7 @@ def local_run(lot):
     proc.send_signal(signal.SIGINT)
     _, stderr = proc.communicate(timeout=120)
     first = _complete(out, names)
-    rerun = run_batch(dirs, out, workers=2, preset="smoke", progress=False)
+    rerun = run_batch(dirs, out, workers=2, preset="smoke", start_material=lotdata.NOMINAL_STEEL_CSV, progress=False)
     return {"out": out, "rc": proc.returncode, "stderr": stderr, "first": first, "rerun": rerun,
             "after": _complete(out, names), "names": names, "dirs": dirs}
 
@@ -137,7 +137,7 @@ def cluster_run(lot):
     base, dirs = lot
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         res = run_batch(dirs, base / "out-cluster", scheduler=cluster.scheduler_address, preset="smoke",
-                        progress=False)
+                        start_material=lotdata.NOMINAL_STEEL_CSV, progress=False)
     return {"out": base / "out-cluster", "res": res}
 
 
@@ -153,7 +153,8 @@ def test_ctrl_c_keeps_finished_units_and_the_rerun_redoes_only_the_rest(local_ru
     assert all(r["after"][n] == run_id for n, run_id in first.items())
     assert not list(r["out"].glob(".tmp-*")) and not list(r["out"].glob(".old-*"))
     # and a third run has only the failed unit to try again
-    again = run_batch(r["dirs"], r["out"], workers=2, preset="smoke", progress=False)
+    again = run_batch(r["dirs"], r["out"], workers=2, preset="smoke", start_material=lotdata.NOMINAL_STEEL_CSV,
+                      progress=False)
     assert again["ran"] == [BAD] and sorted(again["skipped"]) == sorted(set(names) - {BAD})
 
 

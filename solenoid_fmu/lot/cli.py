@@ -24,6 +24,8 @@ def add_cli(sub) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick", help="pipeline preset of every unit "
                    "(default quick)")
     p.add_argument("--geometry", help="geometry TOML of the lot's solenoid (default: the packaged PS45)")
+    p.add_argument("--start-material", help="B(H) CSV the identification of every unit starts from (the lot's "
+                   "nominal steel; default: the literature curve)")
     p.add_argument("--json", action="store_true", help="print the lot's rows as JSON on stdout")
     p.set_defaults(func=_cli)
 
@@ -40,7 +42,7 @@ def _workers(text: str) -> int:
 
 def _cli(args) -> int:
     res = run_batch(args.campaigns, args.output, scheduler=args.scheduler, workers=args.workers, preset=args.preset,
-                    geometry=args.geometry)
+                    geometry=args.geometry, start_material=args.start_material)
     if args.json:
         print(json.dumps(jsonable(res["rows"])))
     else:

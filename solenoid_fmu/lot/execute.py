@@ -73,7 +73,7 @@ def _say(msg: str) -> None:
 
 
 def run_batch(campaign_dirs, out_dir, *, scheduler: str = "local", workers: int | None = None,
-              preset: str = "quick", geometry=None, progress: bool = True) -> dict:
+              preset: str = "quick", geometry=None, start_material=None, progress: bool = True) -> dict:
     """Run the pipeline on every unit of a lot (module docstring) and write the lot summary.
 
     Parameters
@@ -90,6 +90,9 @@ def run_batch(campaign_dirs, out_dir, *, scheduler: str = "local", workers: int 
         The pipeline preset of every unit (:data:`solenoid_fmu.pipeline.PRESETS`).
     geometry : path-like, optional
         The solenoid's geometry TOML (default: the packaged PS45); sent to the workers as text.
+    start_material : path-like, optional
+        B(H) CSV the identification of every unit starts from (the lot's nominal steel; default the literature
+        curve); sent to the workers as text.
     progress : bool
         Units done / failed / skipped and the time left on stderr.
 
@@ -105,12 +108,7 @@ def run_batch(campaign_dirs, out_dir, *, scheduler: str = "local", workers: int 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise LotError(f"workers must be a whole number >= 1, got {workers!r}")
     units = unit_names(campaign_dirs)
-    geometry_text = None
-    if geometry is not None:
-        try:
-            geometry_text = Path(geometry).read_text(encoding="utf-8")
-        except OSError as exc:
-            raise LotError(f"{geometry}: cannot read the geometry: {exc.strerror}") from None
+    geometry_text, start_text = _read_text(geometry, "geometry"), _read_text(start_material, "start material")
     out = require_directory(out_dir, "-o")
     for _name, folder in units:
         if out.resolve().is_relative_to(folder.resolve()):
@@ -122,17 +120,27 @@ def run_batch(campaign_dirs, out_dir, *, scheduler: str = "local", workers: int 
     try:
         with dir_lock(out):
             remove_leftovers(out)
-            return _run(units, out, client, workers, preset, geometry_text, progress, t0)
+            return _run(units, out, client, workers, preset, (geometry_text, start_text), progress, t0)
     finally:
         if client is not None:
             client.close()
 
 
-def _run(units, out: Path, client, workers, preset, geometry_text, progress, t0) -> dict:
+def _read_text(path, what: str) -> str | None:
+    if path is None:
+        return None
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise LotError(f"{path}: cannot read the {what}: {exc.strerror}") from None
+
+
+def _run(units, out: Path, client, workers, preset, texts, progress, t0) -> dict:
+    geometry_text, start_text = texts
     todo, inputs = [], {}
     for name, folder in units:
         files = campaign_files(folder)
-        sha = input_sha256(files, preset, geometry_text)
+        sha = input_sha256(files, preset, geometry_text, start_text)
         inputs[name] = (folder, files, sha)
         if not unit_complete(out / name, sha):
             todo.append(name)
@@ -144,16 +152,18 @@ def _run(units, out: Path, client, workers, preset, geometry_text, progress, t0)
     bar = tqdm(total=len(todo), desc="lot", unit="unit", file=sys.stderr, disable=not progress)
     executor, futures = None, {}
     try:
+        def task(n):
+            return {"preset": preset, "geometry_text": geometry_text, "start_material_text": start_text,
+                    "campaign_label": str(inputs[n][0]), "input_sha256": inputs[n][2]}
+
         if client is None:
             executor = process_pool(workers)
-            futures = {executor.submit(run_unit, n, inputs[n][1], preset=preset, geometry_text=geometry_text,
-                                       campaign_label=str(inputs[n][0]), input_sha256=inputs[n][2]): n for n in todo}
+            futures = {executor.submit(run_unit, n, inputs[n][1], **task(n)): n for n in todo}
             done_iter = cf.as_completed(futures)
         else:
             from distributed import as_completed
 
-            futures = {client.submit(run_unit, n, inputs[n][1], preset=preset, geometry_text=geometry_text,
-                                     campaign_label=str(inputs[n][0]), input_sha256=inputs[n][2], pure=False,
+            futures = {client.submit(run_unit, n, inputs[n][1], **task(n), pure=False,
                                      key=f"solenoid-unit-{n}-{inputs[n][2][:12]}"): n for n in todo}
             done_iter = as_completed(list(futures), loop=client.loop)
         for fut in done_iter:

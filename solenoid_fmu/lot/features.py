@@ -4,7 +4,7 @@
 ``{feature name: float}``; :data:`FEATURES` names and describes them. They are the quantities the steel,
 the coil and the mechanics show themselves in, each measured or identified per unit:
 
-* ``B_T_at_<H>``: the identified B(H) [T] at H = 1, 3, 10 kA/m (``material/material.csv``);
+* ``B_T_at_<H>``: the identified B(H) [T] at H = 1, 3, 10 kA/m (``material/material.csv``'s table, interpolated);
 * ``R20_ohm``: the coil resistance at 20 degC [ohm]: the recordings' header ``coil_resistance_ohm``, corrected
   from the header's ``coil_temperature_C`` with copper's coefficient, median over the recordings;
 * ``psi_Wb_rated_<x>``, ``F_N_rated_<x>``: flux linkage [Wb] and force [N] of the identified maps at the rated
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..field import load_geometry, load_material
+from ..field import load_geometry, read_bh_csv
 from ..maps import force_at, load_maps, psi_at
 from ..measure import read_recording
 from ..realtime import COPPER_ALPHA_PER_K
@@ -114,11 +114,11 @@ def unit_features(recording_paths, out_dir, geometry=None) -> dict:
     """
     out = Path(out_dir)
     recs = [read_recording(p) for p in recording_paths]
-    curve = load_material(out / "material" / "material.csv")
+    H_tab, B_tab = read_bh_csv(out / "material" / "material.csv")  # the table as written, interpolated
     geom = geometry if hasattr(geometry, "coil") else load_geometry(geometry)
     maps = load_maps(out / "maps")
     i_rated = float(geom.coil.max_current_A)
-    feats = {f"B_T_at_{_h_label(H)}": float(curve.B_of_H(H)) for H in FEATURE_H_A_PER_M}
+    feats = {f"B_T_at_{_h_label(H)}": float(np.interp(H, H_tab, B_tab)) for H in FEATURE_H_A_PER_M}
     feats["R20_ohm"] = _r20_ohm(recs)
     for x in FEATURE_STROKES_M:
         feats[f"psi_Wb_rated_{_x_label(x)}"] = float(np.asarray(psi_at(maps, i_rated, x)).ravel()[0])

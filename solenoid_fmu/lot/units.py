@@ -63,12 +63,15 @@ def campaign_files(folder) -> dict[str, bytes]:
     return out
 
 
-def input_sha256(files: dict[str, bytes], preset: str, geometry_text: str | None) -> str:
-    """sha256 over the unit's inputs: file names and contents, the preset, the geometry TOML (None: packaged)."""
+def input_sha256(files: dict[str, bytes], preset: str, geometry_text: str | None,
+                 start_material_text: str | None = None) -> str:
+    """sha256 over the unit's inputs: file names and contents, the preset, the geometry TOML (None: packaged)
+    and the start material's CSV (None: the literature curve)."""
     h = hashlib.sha256()
     for rel in sorted(files):
         h.update(rel.encode() + b"\0" + hashlib.sha256(files[rel]).digest())
     h.update(f"\0preset={preset}\0geometry=".encode() + (geometry_text or "<packaged>").encode())
+    h.update(b"\0start=" + (start_material_text or "<literature>").encode())
     return h.hexdigest()
 
 

@@ -54,7 +54,7 @@ def _collect(out: Path, campaign: Path, campaign_label: str) -> dict[str, bytes]
 
 
 def run_unit(name: str, files: dict, *, preset: str = "quick", geometry_text: str | None = None,
-             campaign_label: str = "", input_sha256: str = "") -> dict:
+             start_material_text: str | None = None, campaign_label: str = "", input_sha256: str = "") -> dict:
     """Run the pipeline on one unit's campaign and return its outputs.
 
     Parameters
@@ -67,6 +67,8 @@ def run_unit(name: str, files: dict, *, preset: str = "quick", geometry_text: st
         The pipeline's preset (:data:`solenoid_fmu.pipeline.PRESETS`).
     geometry_text : str, optional
         The geometry TOML's content (default: the packaged PS45).
+    start_material_text : str, optional
+        The B(H) CSV the identification starts from (the lot's nominal steel; default the literature curve).
     campaign_label : str
         The campaign folder as the client knows it (written into the outputs where the worker's path was).
     input_sha256 : str
@@ -98,7 +100,12 @@ def run_unit(name: str, files: dict, *, preset: str = "quick", geometry_text: st
             if geometry_text is not None:
                 geometry = Path(tmp) / "geometry.toml"
                 geometry.write_text(geometry_text, encoding="utf-8")
-            summary = run_pipeline(camp, out, geometry=geometry, preset=preset, workers=1, progress=None)
+            start = None
+            if start_material_text is not None:
+                start = Path(tmp) / "start-material.csv"
+                start.write_text(start_material_text, encoding="utf-8")
+            summary = run_pipeline(camp, out, geometry=geometry, preset=preset, workers=1, progress=None,
+                                   start_material=start)
             record["features"] = unit_features(summary["recordings"], out, geometry)
             record["status"] = "ok"
             out_files = _collect(out, camp, campaign_label or name)
