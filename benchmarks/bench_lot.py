@@ -1,8 +1,8 @@
 """Benchmark: units per hour of a production lot, local process pool against a Dask LocalCluster, same run.
 
 Draws the test lot (``tests/lotdata.py``: PS45 around DC03, batch variation, undeclared effects, out-of-spec
-units; the rig's end-of-line campaign) and runs ``solenoid_fmu.lot.run_batch`` on it twice, into fresh output
-folders:
+units; the rig's end-of-line campaign) and runs ``solenoid_fmu.lot.run_batch`` on it twice (every unit's
+identification starting from the nominal steel, ``--start-material``), into fresh output folders:
 
 1. ``scheduler="local"``: a process pool of ``--workers`` processes (default 2);
 2. a ``distributed.LocalCluster`` of ``--workers`` worker processes with one thread each, by its address, as
@@ -36,7 +36,8 @@ GOAL_UNITS_PER_HOUR = 60.0
 
 def _run(dirs, out, scheduler, workers, preset) -> dict:
     t0 = time.perf_counter()
-    res = run_batch(dirs, out, scheduler=scheduler, workers=workers, preset=preset, progress=False)
+    res = run_batch(dirs, out, scheduler=scheduler, workers=workers, preset=preset,
+                    start_material=lotdata.NOMINAL_STEEL_CSV, progress=False)
     wall = time.perf_counter() - t0
     unit_s = [r["wall_s"] for r in res["rows"] if r.get("wall_s")]
     return {"wall_s": wall, "units_per_hour": 3600.0 * len(res["ran"]) / wall,
