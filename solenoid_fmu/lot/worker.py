@@ -110,6 +110,6 @@ def run_unit(name: str, files: dict, *, preset: str = "quick", geometry_text: st
             record["status"] = "ok"
             out_files = _collect(out, camp, campaign_label or name)
         except Exception as exc:  # the unit fails, the lot goes on: its one-line error is its result
-            record["error"] = one_line(exc)
+            record["error"] = one_line(exc).replace(str(camp), campaign_label or name)  # the client's path
     record["wall_s"] = time.perf_counter() - t0
     return {"unit": record, "files": out_files}
