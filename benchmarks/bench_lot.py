@@ -68,9 +68,10 @@ def main(argv=None) -> int:
               f"mean unit {dask['mean_unit_s']:.1f} s  failed {dask['failed']}", flush=True)
     ratio = dask["units_per_hour"] / local["units_per_hour"]
     print(f"ratio cluster/local (units per hour): {ratio:.2f}")
-    best = max(local["units_per_hour"], dask["units_per_hour"])
-    verdict = "met" if best >= GOAL_UNITS_PER_HOUR else f"missed by {GOAL_UNITS_PER_HOUR - best:.0f} units/h"
-    print(f"goal >= {GOAL_UNITS_PER_HOUR:.0f} units/h on {args.workers} cores ({args.preset}): {verdict}")
+    for label, r in (("local pool", local), ("Dask LocalCluster", dask)):
+        v = r["units_per_hour"]
+        verdict = "met" if v >= GOAL_UNITS_PER_HOUR else f"missed by {GOAL_UNITS_PER_HOUR - v:.0f} units/h"
+        print(f"goal >= {GOAL_UNITS_PER_HOUR:.0f} units/h on {args.workers} cores ({args.preset}), {label}: {verdict}")
     return 0
 
 

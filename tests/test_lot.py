@@ -75,6 +75,8 @@ def test_bad_input_gives_one_line_naming_it(tmp_path, monkeypatch):
     with pytest.raises(LotError, match=r"cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'") as err:
         run_batch([tmp_path / "a" / "u1"], tmp_path / "out", scheduler="tcp://127.0.0.1:9")
     assert "\n" not in str(err.value)
+    with pytest.raises(LotError, match=r"not a Dask scheduler address: 'tcp://'"):
+        run_batch([tmp_path / "a" / "u1"], tmp_path / "out", scheduler="tcp://")
     r = subprocess.run([sys.executable, "-m", "solenoid_fmu", "batch", str(tmp_path / "nowhere"), "-o",
                         str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and r.stderr.strip().splitlines()[-1].startswith("error: ")

@@ -48,8 +48,16 @@ def connect(address: str):
     """A ``distributed.Client`` on the scheduler at ``address``; :class:`LotError` naming it when unreachable."""
     try:
         from distributed import Client
+        from distributed.comm import parse_address, parse_host_port
     except ImportError as exc:  # pragma: no cover - a dependency of the package
         raise LotError(f"--scheduler {address}: dask.distributed is not installed ({exc})") from None
+    try:  # a malformed address is refused before a Client exists (a half-made one hangs on its way out)
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise LotError(f"not a Dask scheduler address: {address!r} ({' '.join(str(exc).split())}); "
+                       "use 'local' or tcp://HOST:PORT") from None
     try:
         return Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
