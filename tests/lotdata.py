@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from solenoid_fmu.realtime import load_tables
-from solenoid_fmu.rig.lot import draw_lot, plan_lot
+from solenoid_fmu.rig import draw_lot, plan_lot
 
 DATA = Path(__file__).resolve().parent / "data"
 LOT_TRUTHS_DIR = DATA / "lot-truths"
