@@ -217,8 +217,12 @@ def _records(out: Path, units) -> list[dict]:
 def _stop(executor, client, futures) -> None:
     """Ctrl-C: cancel the units not finished; end the local pool's processes now (their units are lost)."""
     if executor is not None:
+        # the pool's own processes only (not other children of a program that called run_batch); the executor
+        # has no public handle on them, and shutdown() would wait for their units to finish
+        procs = list(getattr(executor, "_processes", None) or {})
         executor.shutdown(wait=False, cancel_futures=True)
         for p in multiprocessing.active_children():
-            p.terminate()
+            if p.pid in procs:
+                p.terminate()
     if client is not None:
         client.cancel(list(futures))
