@@ -76,7 +76,7 @@ from .report import write_campaign_report
 #: coarsest that still runs every step (a production lot's tests, ``solenoid-fmu batch --preset smoke``: a
 #: coarser identification mesh, 4 currents per stroke, at most ``identify_max_nfev`` Levenberg-Marquardt
 #: evaluations per stage, a 4 x 6 maps grid, no figures (``figures``: the report.html without them) and no native
-#: FMU (``native``); ~10 s per unit on a short end-of-line campaign, not product quality).
+#: FMU (``native``); ~12 s of CPU per unit on the end-of-line campaign, not product quality).
 PRESETS = {
     "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
     "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
