@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "fmu.cli:add_cli",
     "loop.cli:add_cli",
     "pipeline:add_cli",
+    "lot.cli:add_cli",
 )
 
 EPILOG = """examples:

@@ -72,10 +72,16 @@ from .maps import (
 from .measure import read_recording, write_recording
 from .report import write_campaign_report
 
-#: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests).
+#: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests), "smoke" the
+#: coarsest that still runs every step (a production lot's tests, ``solenoid-fmu batch --preset smoke``: a
+#: coarser identification mesh, 4 currents per stroke, at most ``identify_max_nfev`` Levenberg-Marquardt
+#: evaluations per stage, a 4 x 6 maps grid, no figures (``figures``: the report.html without them) and no native
+#: FMU (``native``); ~12 s of CPU per unit on the end-of-line campaign, not product quality).
 PRESETS = {
     "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
     "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6},
+    "smoke": {"identify_mesh_size": 4.0, "maps_mesh_size": 3.0, "n_x": 4, "n_i": 6, "n_currents": 4,
+              "identify_max_nfev": 2, "figures": False, "native": False},
 }
 
 
@@ -162,7 +168,7 @@ def campaign_maps(geometry, curve, recordings, eddy_recordings=None, *, preset: 
     eddy_recordings : list of Recording, optional
         Where G_eddy is fitted from (default: the ``eddy`` recordings among ``recordings``; the pipeline's
         second round passes the heating-corrected ones).
-    preset : {"full", "quick"}
+    preset : {"full", "quick", "smoke"}
         The FEM grid (:data:`PRESETS`).
     executor : concurrent.futures.Executor, optional
         Runs the sweep (default: in this process).
@@ -225,8 +231,11 @@ def pipeline_incomplete(out_dir) -> str | None:
 
 
 def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
-                 progress=_progress) -> dict:
+                 progress=_progress, start_material=None) -> dict:
     """Run the main job (module docstring) and return the summary dict (also in ``summary.json``).
+
+    ``start_material`` (a B(H) CSV or curve; default the literature curve) is where the identification starts
+    (``solenoid-fmu batch --start-material``: a lot's nominal steel).
 
     Every argument is checked before any work; the output folder is locked for the run and marked
     incomplete (:data:`INCOMPLETE_MARKER`, the earlier ``summary.json`` and ``report.html`` removed) until
@@ -245,16 +254,17 @@ def run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worker
         for name in ("summary.json", "report.html"):
             (out / name).unlink(missing_ok=True)
         summary = _run_pipeline(folder, out_dir, geometry=geometry, preset=preset, workers=workers,
-                                progress=progress)
+                                progress=progress, start_material=start_material)
         (out / INCOMPLETE_MARKER).unlink()
     return summary
 
 
 def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
-                  progress=_progress) -> dict:
+                  progress=_progress, start_material=None) -> dict:
     if preset not in PRESETS:
         raise PipelineError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
     cfg = PRESETS[preset]
+    figures = cfg.get("figures", True)
     say = progress or (lambda msg: None)
     folder, out = Path(folder), _output_dir(folder, out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -283,9 +293,12 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
     for round_no in (1, 2):
         t0 = step(f"identify B(H) from the flux recordings{suffix}")
         material_csv = out / "material" / "material.csv"
+        max_nfev = {"max_nfev": cfg["identify_max_nfev"]} if "identify_max_nfev" in cfg else {}
         ident = identify_from_recordings(ident_paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
-                                         out_csv=material_csv, report_dir=out / "identify",
-                                         progress=progress is not None, n_currents=cfg["n_currents"])
+                                         start_material=start_material,
+                                         out_csv=material_csv, report_dir=out / "identify" if figures else None,
+                                         progress=progress is not None, n_currents=cfg["n_currents"],
+                                         **max_nfev)
         ident_summary = ident.summary()
         say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
             f"{ident_summary.get('equivalent_sweeps', float('nan')):.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")
@@ -306,15 +319,16 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         fmu = build_fmu(maps_dir, out / f"{name}.fmu")
         native = None
         try:
-            native = build_fmu(maps_dir, out / f"{name}-native.fmu", backend="c")
+            if cfg.get("native", True):
+                native = build_fmu(maps_dir, out / f"{name}-native.fmu", backend="c")
         except SolenoidError as exc:  # no C compiler on this machine: the pythonfmu export still stands
             say(f"   native FMU not built: {exc}")
         say(f"   {fmu}" + (f", {native}" if native else ""))
         times["export"] = time.perf_counter() - t0
 
         t0 = step("validate and diagnose the FMU on every recording; improve")
-        res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved",
-                      before_report_dir=out / "validate", progress=lambda m: say(f"   {m}"))
+        res = improve(fmu, recs, out / f"{name}-improved.fmu", report_dir=out / "improved" if figures else None,
+                      before_report_dir=out / "validate" if figures else None, progress=lambda m: say(f"   {m}"))
         native_improved = None
         if native is not None:
             try:
@@ -383,7 +397,7 @@ def add_cli(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="output directory")
     p.add_argument("--geometry", help="geometry TOML (default: the packaged PS45)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="full",
-                   help="FEM grid quality: full (default) or quick (coarse, for checks)")
+                   help="FEM grid quality: full (default), quick (coarse, for checks) or smoke (coarsest, tests)")
     p.add_argument("--workers", type=_workers, help="processes for the maps sweep (default: all cores)")
     p.add_argument("--json", action="store_true", help="print summary.json's content on stdout")
     p.set_defaults(func=_cli)

@@ -25,6 +25,7 @@ LAYERS = {
     "fmu": 4, "rig": 4,
     "loop": 5, "report": 5,
     "pipeline": 6,
+    "lot": 6.5,  # a production lot: above pipeline (runs it per unit), below api/cli
     "api": 7,
     "cli": 8,
     "__main__": 9,
