@@ -60,9 +60,10 @@ N_X = 12
 #: nodes at power 1.5 the maps missed the FEM by 4-25 % at 10-30 mA and 1-1.6 % at 50-150 mA).
 N_I = 31
 I_POWER = 2.0
-#: Flux nodes of the inverted tables i_f(Psi, x) the rig plays (801: 0.3 MB per truth; the automatic choice
-#: would take 3201 for the round trip at the 2.6 mA node, 1.3 MB per truth).
-NPSI = 801
+#: Flux nodes of the inverted tables i_f(Psi, x) the rig plays: None, the maps' own choice (the smallest of
+#: 101 .. 3201 whose round trip is within 5e-4; the knee of a high-permeability steel at tens of mA takes
+#: 3201, 1.3 MB).
+NPSI = None
 I_TOP_A = 2.5
 
 
@@ -113,7 +114,7 @@ def make_truth(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, fl
 
 
 def reinvert(name: str) -> None:
-    """Invert a stored truth's FEM tables again with :data:`NPSI` flux nodes (the last step of
+    """Invert a stored truth's FEM tables again (:data:`NPSI` flux nodes; the last step of
     :func:`make_truth`, which gives the same arrays from the same FEM tables)."""
     maps = T.truth_maps.__wrapped__(name)
     keep = {k: v for k, v in maps.metadata.items()
@@ -130,7 +131,7 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2, help="steels made at once (processes)")
     ap.add_argument("--mesh-size", type=float, default=T.TRUTH_MESH_SIZE)
     ap.add_argument("--reinvert", action="store_true",
-                    help="only invert the stored FEM tables again with NPSI flux nodes (no FEM; seconds)")
+                    help="only invert the stored FEM tables again (no FEM; seconds)")
     args = ap.parse_args(argv)
     names = args.names or T.truth_names()
     for n in names:
@@ -138,7 +139,7 @@ def main(argv=None) -> int:
     if args.reinvert:
         for n in names:
             reinvert(n)
-            print(f"{n}: inverted again with {NPSI} flux nodes", flush=True)
+            print(f"{n}: inverted again", flush=True)
         return 0
     t0 = time.perf_counter()
     with cf.ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
