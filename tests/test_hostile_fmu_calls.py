@@ -88,6 +88,13 @@ out["hsub_back"] = s.getReal([vr["h_sub_max_s"]])[0]
 out["tunable"] = call(s.setReal, [vr["R_ohm"]], [13.0])[0]
 s.doStep(1e-3, 1e-3)
 out["i"] = s.getReal([vr["i_out_A"]])[0]  # voltage-driven: 12 V through ~12 ohm, not the 0.5 A input
+if "status 4" in out["drive"]:
+    # fmi2Fatal (pythonfmu's only refusal): FMI 2.0 allows no further call on the instance, not even the
+    # fmi2FreeInstance that fmpy's teardown makes at interpreter exit (seen once aborting with "corrupted
+    # double-linked list" inside pythonfmu's wrapper); report and leave without it
+    import os
+    print("RESULT " + json.dumps(out), flush=True)
+    os._exit(0)
 """
 
 
