@@ -1,6 +1,6 @@
 """pythonfmu backend: the FMU runs :mod:`solenoid_fmu.realtime.model` in the importer's Python.
 
-The FMU packs a copy of the model (``solenoid_model_<hash>.py``, numpy only), the slave of
+The FMU packs a copy of the model package (``solenoid_model_<hash>/``, numpy only), the slave of
 :mod:`solenoid_fmu.fmu.slave` (``solenoid_slave_<hash>.py``, made by :func:`slave_source`) and the
 maps (``maps.npz`` + ``maps.json``, no pickle). The hash names both modules after their sources,
 so FMUs of different versions load side by side in one process. Co-simulation only; the FMU
@@ -26,7 +26,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import FmuBuildError
-from ..realtime import MODEL_SOURCE, MapTables
+from ..realtime import MapTables, model_source_files
 from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES
 from .model_description import BackendDescription
 
@@ -72,7 +72,9 @@ def slave_source(model_module: str) -> str:
 
 def _source_hash() -> str:
     """Short hash of the model and slave sources: names the modules shipped in the FMU."""
-    h = hashlib.sha256(MODEL_SOURCE.read_bytes())
+    h = hashlib.sha256()
+    for f in model_source_files():
+        h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     h.update(slave_source("solenoid_model").encode())
     return h.hexdigest()[:12]
 
@@ -92,8 +94,11 @@ def build_python_fmu(maps_dir, dest, tables: MapTables) -> str:
         src.mkdir()
         script = src / f"{slave_module}.py"
         script.write_text(slave_source(model_module), encoding="utf-8")
-        shutil.copyfile(MODEL_SOURCE, src / f"{model_module}.py")
-        project = [src / f"{model_module}.py"]
+        package = src / model_module  # the model package's modules only (no __pycache__)
+        package.mkdir()
+        for f in model_source_files():
+            shutil.copyfile(f, package / f.name)
+        project = [package]
         for name in ("maps.npz", "maps.json"):
             shutil.copyfile(maps_dir / name, src / name)
             project.append(src / name)
@@ -112,7 +117,7 @@ def build_python_fmu(maps_dir, dest, tables: MapTables) -> str:
                                 f"{type(exc).__name__}: {exc}") from exc
         finally:
             sys.path[:] = path_before
-            for mod in (slave_module, model_module):
+            for mod in [m for m in sys.modules if m == slave_module or m.split(".")[0] == model_module]:
                 sys.modules.pop(mod, None)
         shutil.copyfile(built, dest)
     return f"solenoid-fmu {__version__} (python backend: pythonfmu {pythonfmu.__version__})"
