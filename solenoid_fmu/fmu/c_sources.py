@@ -12,7 +12,9 @@
 * ``solenoid_maps.h`` (:func:`maps_header`): the maps as constant arrays (the cell cubics of
   :meth:`solenoid_fmu.realtime.MapTables.tables`, never recomputed in C), the default of every
   parameter of ``DEFAULT_PARAMS`` for these maps (``SOL_<NAME>_DEFAULT``) and the effect data.
-* the model source ``c/solenoid_fmu.c``, the FMI 2.0 headers shipped with fmpy and a ``CMakeLists.txt``.
+* the model source ``c/solenoid_fmu.c`` with the parts it includes (:data:`C_PARTS`: the model by job, one
+  translation unit, so the build compiles ``solenoid_fmu.c`` alone), the FMI 2.0 headers shipped with fmpy
+  and a ``CMakeLists.txt``.
 
 Every number is written as the shortest round-trip literal (``repr``), checked finite first.
 """
@@ -49,6 +51,7 @@ from ..realtime import (
 from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES
 
 __all__ = [
+    "C_PARTS",
     "C_SOURCE",
     "C_SOURCE_FMI3",
     "FMI3_HEADERS",
@@ -63,6 +66,10 @@ __all__ = [
 
 #: The model source (package data) copied into the FMU's ``sources/``.
 C_SOURCE = Path(__file__).with_name("c") / "solenoid_fmu.c"
+#: The parts of the model that ``solenoid_fmu.c`` includes (``#include "sol_....c"``), by job: types and
+#: logging, map lookup, parameters, the step, the effects' step, model-exchange evaluation.
+C_PARTS = tuple(Path(__file__).with_name("c") / name for name in (
+    "sol_core.h", "sol_lookup.c", "sol_params.c", "sol_step.c", "sol_effects.c", "sol_me.c"))
 #: The FMI 3.0 functions: they include ``solenoid_fmu.c`` (fmi2 names prefixed, not exported) and call it.
 C_SOURCE_FMI3 = Path(__file__).with_name("c") / "solenoid_fmi3.c"
 #: FMI 2.0 headers copied from fmpy's ``c-code`` directory.
@@ -391,12 +398,15 @@ def generate_sources(tables: MapTables, dest_dir, *, guid: str | None = None, fm
         raise FmuBuildError(f"FMI version {fmi_version!r}: the native backend writes FMI 2 or 3")
     source = C_SOURCE.read_text(encoding="utf-8")
     source3 = C_SOURCE_FMI3.read_text(encoding="utf-8") if fmi_version == 3 else ""
+    parts = {p.name: p.read_text(encoding="utf-8") for p in C_PARTS}
     check_implemented(source)
     dest = Path(dest_dir)
     params = default_params(tables)
     model_h = model_header()
     if guid is None:
         h = hashlib.sha256(source.encode())
+        for name, text in parts.items():
+            h.update(name.encode() + b"\0" + text.encode())
         h.update(source3.encode())
         h.update(model_h.encode())
         h.update(maps_header(tables, params, "").encode())
@@ -406,6 +416,8 @@ def generate_sources(tables: MapTables, dest_dir, *, guid: str | None = None, fm
     (dest / "solenoid_model.h").write_text(model_h, encoding="utf-8")
     (dest / "solenoid_maps.h").write_text(maps_h, encoding="utf-8")
     (dest / "solenoid_fmu.c").write_text(source, encoding="utf-8")
+    for name, text in parts.items():
+        (dest / name).write_text(text, encoding="utf-8")
     hdr = fmi_header_dir()
     for name in FMI_HEADERS + (FMI3_HEADERS if fmi_version == 3 else ()):
         shutil.copyfile(hdr / name, dest / name)

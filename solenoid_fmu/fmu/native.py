@@ -2,7 +2,8 @@
 
 ``solenoid-fmu export maps/NAME -o build/NAME.fmu --backend c`` (or
 ``build_fmu(maps_dir, dest, backend="c")``) writes the C sources of
-:mod:`solenoid_fmu.fmu.c_sources` (the model source ``fmu/c/solenoid_fmu.c``, the generated
+:mod:`solenoid_fmu.fmu.c_sources` (the model source ``fmu/c/solenoid_fmu.c`` and the parts it includes,
+``sol_core.h``, ``sol_lookup.c``, ``sol_params.c``, ``sol_step.c``, ``sol_effects.c``, ``sol_me.c``; the generated
 ``solenoid_model.h`` and ``solenoid_maps.h``, the FMI 2.0 headers shipped with fmpy) into the FMU's
 ``sources/`` and compiles ``binaries/linux64/SolenoidFmu.so`` with the machine's C compiler
 (``$CC``, else ``gcc``, else ``cc``) and ``binaries/win64/SolenoidFmu.dll`` with Debian's mingw-w64
