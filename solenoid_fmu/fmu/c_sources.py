@@ -253,7 +253,8 @@ def check_implemented(source: str | None = None) -> None:
     """Refuse to generate C for a model.py with states, parameters or effects the C source lacks.
 
     The C source declares what it implements (``#define IMPLEMENTS_STATE_LAYOUT 1`` ...); it also
-    stops at compile time (``#error``) when the generated ``solenoid_model.h`` disagrees.
+    stops at compile time (``#error``) when the generated ``solenoid_model.h`` disagrees. These are counts
+    only: that both do the same arithmetic is checked by ``tests/test_backends_equal.py`` (bit for bit).
     """
     source = C_SOURCE.read_text(encoding="utf-8") if source is None else source
     diff = []

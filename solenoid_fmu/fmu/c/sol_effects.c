@@ -3,7 +3,7 @@
  * Part of the model code of solenoid_fmu.c, which includes it (one translation unit). */
 #include "sol_core.h"
 
-/* ---- effect sub-models (model.py play_step, SolenoidModel._step_fx) ------------------------ */
+/* ---- effect sub-models (model.py play.play_step, SolenoidModel._step_fx) ------------------- */
 /* Advance the play operators to b [Wb] (in place) and return g(b) sum w_j (b - p_j) [A]. */
 static double play_step(double *plays, double b)
 {

@@ -3,7 +3,7 @@
 #include "sol_core.h"
 
 /* ---- parameters ----------------------------------------------------------------------------- */
-/* An effect scalar: finite and >= 0 (> 0 when positive); 0 (logged) otherwise (model.py set_params). */
+/* An effect scalar: finite and >= 0 (> 0 when positive); 0 (logged) otherwise (model.py params.checked_param). */
 static int fx_scalar_ok(Inst *in, const char *name, double v, int positive)
 {
     if (!is_finite(v)) { say(in, fmi2Error, "%s must be finite, got %.17g", name, v); return 0; }
@@ -14,7 +14,7 @@ static int fx_scalar_ok(Inst *in, const char *name, double v, int positive)
     return 1;
 }
 
-/* A switch may only be on when the maps carry that effect (model.py set_params). */
+/* A switch may only be on when the maps carry that effect (model.py params.checked_param). */
 static int fx_switch_ok(Inst *in, const char *name, const char *effect, int on, int available)
 {
     if (on && !available) {

@@ -28,7 +28,7 @@ static double ros2(double psi, double v, double d, double m, double b, double c,
     return psi;
 }
 
-/* ---- excursion flags and their messages (model.py _finish / _set_flag) --------------------- */
+/* ---- excursion flags and their messages (SolenoidModel._finish, _set_flag) --------------- */
 static void set_flag(Inst *in, double *s, int k, int on, double i_f, double x_m, double t_s)
 {
     if (on && s[k] == 0.0) {

@@ -1,15 +1,19 @@
 /*
  * solenoid-fmu native FMU: FMI 2.0 co-simulation and model exchange in one binary.
  *
- * The real-time lumped solenoid model of solenoid_fmu/realtime/model.py (paper eqs. 1-3, SI units):
+ * The real-time lumped solenoid model of solenoid_fmu/realtime/model/ (paper eqs. 1-3, SI units):
  *
  *     U = R i + dPsi/dt                               paper eq. (1)
  *     i = i_f(Psi, x) + G dPsi/dt                     paper eq. (2), G = G_eddy [S]
  *     F = F(Psi, x)                                   paper eq. (3)
  *
- * This file reproduces model.py step for step (same lookups, same ROS2 sub-steps, same Newton
- * iteration, same arithmetic order), so that the co-simulation outputs agree with model.py to
- * rounding. It is written in C99 without allocation outside fmi2Instantiate / fmi2GetFMUstate /
+ * The model code is split by job into files this one includes (one translation unit, so the build
+ * compiles solenoid_fmu.c alone): sol_core.h (Core, Inst, logging), sol_lookup.c (map lookup, Newton),
+ * sol_params.c (parameters), sol_step.c (initialization, the step, excursion flags), sol_effects.c (the
+ * effects' step), sol_me.c (model-exchange evaluation); this file holds the FMI 2.0 functions.
+ * It reproduces the Python model step for step (same lookups, same ROS2 sub-steps, same Newton
+ * iteration, same arithmetic order), so that the co-simulation outputs equal the Python model's bit for
+ * bit (tests/test_backends_equal.py compares them over random maps, parameters and inputs). It is written in C99 without allocation outside fmi2Instantiate / fmi2GetFMUstate /
  * fmi2DeSerializeFMUstate (all through the importer's allocateMemory callback); the maps are the
  * constant arrays of the generated header solenoid_maps.h (cell cubics of model.MapTables.tables(),
  * never recomputed here). Compile: cc -std=c99 -O2 -shared -fPIC -ffp-contract=off solenoid_fmu.c -lm
@@ -22,7 +26,7 @@
  * (an FMU gets no di/dt in model exchange). |Psi| at psi_max: the derivative is held at 0 while it
  * points outwards (the state does not wind up), as in co-simulation.
  *
- * Effect sub-models (maps.json effects; model.py _step_fx): hysteresis (play operators on Psi),
+ * Effect sub-models (maps.json effects; SolenoidModel._step_fx): hysteresis (play operators on Psi),
  * eddy ladder (R-L sections beside G), heating (R(T), first-order thermal model) and friction (Dahl in
  * x), switched by Boolean parameters; their data are the SOL_LAD_* / SOL_PLAY_* / SOL_SHAPE_* arrays
  * of solenoid_maps.h and their states Core.fx (model.py EFFECT_STATE_NAMES, ladder_k, play_k). With
