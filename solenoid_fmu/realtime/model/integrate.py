@@ -12,7 +12,7 @@ import math
 
 from .definitions import ROS2_GAMMA
 from .play import play_step
-from .tables import MapTables, i_f_slope, solve_psi
+from .tables import HOT_CI, HOT_PSI_MAX, MapTables, cell_cubic, i_f_slope, solve_psi
 
 
 def ros2(hot: tuple, psi: float, v: float, d: float, m: float, b: float, c: float, hs: float, n: int,
@@ -23,14 +23,19 @@ def ros2(hot: tuple, psi: float, v: float, d: float, m: float, b: float, c: floa
     step's output evaluation); ``hot`` is :attr:`MapTables.hot`.
     """
     g = ROS2_GAMMA
-    pm = hot[5]
+    CI, pm = hot[HOT_CI], hot[HOT_PSI_MAX]
     clamped = False
     for sub in range(n):
-        if sub:  # stage 1 of a later sub-step: value and slope at psi
-            v, d = i_f_slope(hot, psi, j, w)
+        if sub:  # stage 1 of a later sub-step: value and slope at psi (i_f_slope, one call less: hot path)
+            if psi < 0.0:
+                v, d = cell_cubic(CI, hot, -psi, j, w)
+                v = -v
+            else:
+                v, d = cell_cubic(CI, hot, psi, j, w)
         W = m + g * hs * c * d
         k1 = (b - c * v) / W
-        v2 = i_f_slope(hot, psi + hs * k1, j, w)[0]  # stage 2: value at psi + hs k1
+        p2 = psi + hs * k1  # stage 2: value at psi + hs k1
+        v2 = -cell_cubic(CI, hot, -p2, j, w)[0] if p2 < 0.0 else cell_cubic(CI, hot, p2, j, w)[0]
         k2 = (b - c * v2 - 2.0 * m * k1) / W
         psi = psi + 1.5 * hs * k1 + 0.5 * hs * k2
         if psi > pm:
@@ -65,7 +70,7 @@ def ros2_ladder(hot: tuple, psi: float, ik: list, b: float, c: float, m: float, 
     q = [(r[k] + Gk[k] * q0) / a[k] for k in range(nl)]
     psi = psi + 1.5 * hs * z0 + 0.5 * hs * q0
     ik = [ik[k] + 1.5 * hs * z[k] + 0.5 * hs * q[k] for k in range(nl)]
-    pm = hot[5]
+    pm = hot[HOT_PSI_MAX]
     if psi > pm:
         return pm, ik, True
     if psi < -pm:

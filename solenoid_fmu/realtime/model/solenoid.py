@@ -146,7 +146,8 @@ class SolenoidModel:
         s = [float(v) for v in state]
         n = len(STATE_NAMES) + len(self._fx_names)
         if len(s) != n or s[ST_STATE_LAYOUT] != float(STATE_LAYOUT):
-            raise ModelInputError(f"state vector has {len(s)} entries and layout {s[0] if s else None!r}; "
+            layout = s[ST_STATE_LAYOUT] if s else None
+            raise ModelInputError(f"state vector has {len(s)} entries and layout {layout!r}; "
                                   f"this model expects {n} entries, layout {STATE_LAYOUT}")
         for k, v in enumerate(s):
             if k in (ST_TIME_S, ST_PSI_WB) or k >= len(STATE_NAMES):
@@ -341,9 +342,9 @@ class SolenoidModel:
 
     def _x_cell_cached(self, x_m: float) -> tuple:
         """:meth:`MapTables.x_cell` of ``x_m``, remembered for the next step with the same gap."""
-        cached = self._x_cache
-        if x_m == cached[0]:
-            return cached[1]
+        cached_x, cell = self._x_cache
+        if x_m == cached_x:
+            return cell
         cell = self.tables.x_cell(x_m)
         self._x_cache = (x_m, cell)
         return cell
@@ -362,9 +363,9 @@ class SolenoidModel:
             n = math.ceil(h * inv_hsub - 1e-9)
             if n < 1:
                 n = 1
-            end = self._end_cache  # i_f and slope at psi0 from the end of the last step
-            if end[0] == psi0 and end[1] == j and end[2] == w:
-                v0, d0 = end[3], end[4]
+            e_psi, e_j, e_w, e_v, e_d = self._end_cache  # i_f and slope at psi0 from the end of the last step
+            if e_psi == psi0 and e_j == j and e_w == w:
+                v0, d0 = e_v, e_d
             else:
                 v0, d0, _ = eval_cell(hot, psi0, j, w)
             psi, pc = ros2(hot, psi0, v0, d0, m, u, c, h / n, n, j, w)

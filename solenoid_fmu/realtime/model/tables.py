@@ -88,6 +88,10 @@ def _cell_tuples(coef: np.ndarray) -> list:
 
 
 
+#: Positions in :attr:`MapTables.hot`: the cell cubics of i_f and F, and psi_max.
+HOT_CI, HOT_CF, HOT_PSI_MAX = 0, 1, 5
+
+
 def cell_cubic(C: list, hot: tuple, a: float, j: int, w: float) -> tuple[float, float]:
     """Value and d/dPsi of the cell cubics ``C`` at ``|Psi| = a`` (clamped to psi_max) in x cell ``(j, w)``.
 
@@ -113,16 +117,16 @@ def cell_cubic(C: list, hot: tuple, a: float, j: int, w: float) -> tuple[float, 
 def i_f_slope(hot: tuple, psi: float, j: int, w: float) -> tuple[float, float]:
     """``i_f`` [A] and ``d i_f / d Psi`` [A/Wb] at ``(psi, x cell (j, w))``; i_f is odd in Psi."""
     if psi < 0.0:
-        v, d = cell_cubic(hot[0], hot, -psi, j, w)
+        v, d = cell_cubic(hot[HOT_CI], hot, -psi, j, w)
         return -v, d
-    return cell_cubic(hot[0], hot, psi, j, w)
+    return cell_cubic(hot[HOT_CI], hot, psi, j, w)
 
 
 def eval_cell(hot: tuple, psi: float, j: int, w: float) -> tuple[float, float, float]:
     """``i_f`` [A], ``d i_f / d Psi`` [A/Wb] and ``F`` [N] (even in Psi) at ``(psi, x cell (j, w))``."""
     a = -psi if psi < 0.0 else psi
-    v, d = cell_cubic(hot[0], hot, a, j, w)
-    f = cell_cubic(hot[1], hot, a, j, w)[0]
+    v, d = cell_cubic(hot[HOT_CI], hot, a, j, w)
+    f = cell_cubic(hot[HOT_CF], hot, a, j, w)[0]
     return (-v if psi < 0.0 else v), d, f
 
 def _checked_arrays(psi_Wb, x_m, i_f_A, force_N, extrapolated, where: str) -> tuple:
