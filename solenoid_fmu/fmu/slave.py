@@ -4,7 +4,7 @@ Wraps the numpy-only real-time model :mod:`solenoid_fmu.realtime.model` (paper e
 variables of :mod:`solenoid_fmu.fmu.interface`. The python backend
 (:func:`solenoid_fmu.fmu.python_backend.slave_source`) copies this file into the FMU as
 ``solenoid_slave_<hash>.py`` with its two package imports replaced: the model by its copy
-``solenoid_model_<hash>.py`` shipped beside it, the interface table by literals. The class name is
+package ``solenoid_model_<hash>/`` shipped beside it, the interface table by literals. The class name is
 the FMU's modelIdentifier (pythonfmu takes it from the class).
 
 It raises into the pythonfmu C wrapper (which turns any exception into fmi2Fatal) only to refuse a

@@ -1,8 +1,8 @@
 r"""The real-time lumped solenoid model, paper eqs. (1)-(3) with the eddy-current term.
 
-This module imports only numpy and the standard library: it is copied verbatim into every FMU
-(as ``solenoid_model_<hash>.py``) and must not import anything from ``solenoid_fmu``. The
-equations (SI units throughout)::
+This package imports only numpy and the standard library: it is copied verbatim into every FMU
+(as the package ``solenoid_model_<hash>/``) and must not import anything from ``solenoid_fmu`` (its
+modules import each other relatively). The equations (SI units throughout)::
 
     U = R i + dPsi/dt                          paper eq. (1)
     i = i_f(Psi, x) + i_eddy,  i_eddy = G dPsi/dt   paper eq. (2), G = G_eddy [S] (the paper's L_eddy)
