@@ -15,6 +15,15 @@ from .play import play_step
 from .tables import HOT_CI, HOT_PSI_MAX, MapTables, cell_cubic, i_f_slope, solve_psi
 
 
+def plain_sum(values) -> float:
+    """Sum left to right from 0.0, as the C model's loops add. Not :func:`sum`: from Python 3.12 it
+    compensates the rounding of floats (Neumaier), which would break the bit-for-bit equality with C."""
+    acc = 0.0
+    for v in values:
+        acc += v
+    return acc
+
+
 def ros2(hot: tuple, psi: float, v: float, d: float, m: float, b: float, c: float, hs: float, n: int,
          j: int, w: float) -> tuple[float, bool]:
     """``n`` ROS2 sub-steps of ``hs`` [s] for ``m dPsi/dt = b - c i_f(Psi, x)``; returns (Psi, clamped).
@@ -56,17 +65,17 @@ def ros2_ladder(hot: tuple, psi: float, ik: list, b: float, c: float, m: float, 
     gh = ROS2_GAMMA * hs
     v, d = i_f_slope(hot, psi, j, w)
     a = [tk[k] + gh for k in range(nl)]
-    den = m + gh * c * d + sum(gh * c * Gk[k] / a[k] for k in range(nl))
-    f0 = b - c * (v + ih + sum(ik))
+    den = m + gh * c * d + plain_sum(gh * c * Gk[k] / a[k] for k in range(nl))
+    f0 = b - c * (v + ih + plain_sum(ik))
     r = [-ik[k] for k in range(nl)]
-    z0 = (f0 - gh * c * sum(r[k] / a[k] for k in range(nl))) / den
+    z0 = (f0 - gh * c * plain_sum(r[k] / a[k] for k in range(nl))) / den
     z = [(r[k] + Gk[k] * z0) / a[k] for k in range(nl)]
     p2 = psi + hs * z0
     i2 = [ik[k] + hs * z[k] for k in range(nl)]
     v2 = i_f_slope(hot, p2, j, w)[0]
-    f0 = b - c * (v2 + ih + sum(i2)) - 2.0 * m * z0
+    f0 = b - c * (v2 + ih + plain_sum(i2)) - 2.0 * m * z0
     r = [-i2[k] - 2.0 * (tk[k] * z[k] - Gk[k] * z0) for k in range(nl)]
-    q0 = (f0 - gh * c * sum(r[k] / a[k] for k in range(nl))) / den
+    q0 = (f0 - gh * c * plain_sum(r[k] / a[k] for k in range(nl))) / den
     q = [(r[k] + Gk[k] * q0) / a[k] for k in range(nl)]
     psi = psi + 1.5 * hs * z0 + 0.5 * hs * q0
     ik = [ik[k] + 1.5 * hs * z[k] + 0.5 * hs * q[k] for k in range(nl)]

@@ -40,7 +40,7 @@ from .definitions import (
     finite_float,
 )
 from .effects import effects_data
-from .integrate import dahl_friction, fx_substeps, ros2
+from .integrate import dahl_friction, fx_substeps, plain_sum, ros2
 from .params import checked_param
 from .tables import MapTables, eval_cell, solve_psi
 
@@ -437,7 +437,7 @@ class SolenoidModel:
         i_f, d_end, force = eval_cell(tab.hot, psi, j, w)
         self._end_cache = _NO_END
         R = R0 * (1.0 + cfg["alpha"] * T) if cfg["heat"] else R0
-        sik = sum(ik)
+        sik = plain_sum(ik)
         if voltage:
             dpsi = (u - R * (i_f + ih + sik)) / (1.0 + R * G0)
             s[ST_OUT_I_A] = i_f + ih + G0 * dpsi + sik
