@@ -202,34 +202,44 @@ def check_bh_table(H, B, tol: float = 0.10, where: str = "B(H) table") -> None:
         )
 
 
-def _isotonic(y: np.ndarray) -> np.ndarray:
-    """Least-squares non-decreasing fit of y (pool adjacent violators)."""
-    vals: list[float] = []
-    cnts: list[int] = []
-    for v in y:
-        vals.append(float(v))
-        cnts.append(1)
-        while len(vals) > 1 and vals[-2] > vals[-1]:
-            c = cnts[-2] + cnts[-1]
-            vals[-2] = (vals[-2] * cnts[-2] + vals[-1] * cnts[-1]) / c
-            cnts[-2] = c
-            vals.pop()
-            cnts.pop()
-    return np.repeat(vals, cnts)
+def _isotonic(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares non-decreasing fit of y (pool adjacent violators), and the squared error of the
+    fit of every prefix ``y[:k + 1]`` (PAVA's stack after element k is that prefix's fit). O(len(y))."""
+    s: list[float] = []  # block sums, sums of squares, counts
+    q: list[float] = []
+    n: list[int] = []
+    err = np.empty(len(y))
+    sse = 0.0
+    for k, v in enumerate(np.asarray(y, dtype=float)):
+        s.append(float(v))
+        q.append(float(v) * float(v))
+        n.append(1)
+        while len(s) > 1 and s[-2] * n[-1] > s[-1] * n[-2]:
+            a, b, c = s.pop(), q.pop(), n.pop()
+            sse -= (b - a * a / c) + (q[-1] - s[-1] ** 2 / n[-1])
+            s[-1] += a
+            q[-1] += b
+            n[-1] += c
+            sse += q[-1] - s[-1] ** 2 / n[-1]
+        err[k] = sse
+    return np.repeat(np.array(s) / np.array(n, dtype=float), n), err
 
 
 def unimodal_fit(y: np.ndarray) -> tuple[np.ndarray, int]:
     """Best (least squares: the L2 projection onto unimodal sequences) fit of y rising to one peak then
-    falling; returns (fit, peak index)."""
-    best = None
-    for p in range(len(y)):
-        up = _isotonic(y[: p + 1])
-        down = -_isotonic(-y[p:])[1:] if p + 1 < len(y) else np.empty(0)
-        fit = np.concatenate([up, np.minimum(down, up[-1])])
-        err = np.sum((fit - y) ** 2)
-        if best is None or err < best[0]:
-            best = (err, fit, p)
-    return best[1], best[2]
+    falling; returns (fit, peak index). Exact: the best split into a non-decreasing head ``y[:p + 1]``
+    and a non-increasing tail, every split's error from one pass each way. O(len(y))."""
+    y = np.asarray(y, dtype=float)
+    if len(y) == 0:
+        return y.copy(), 0
+    _, up = _isotonic(y)  # up[p]: error of the rising fit of y[:p + 1]
+    _, down = _isotonic(y[::-1])
+    down = down[::-1]  # down[p]: error of the falling fit of y[p:]
+    total = up.copy()
+    total[:-1] += down[1:]
+    p = int(np.argmin(total))
+    fit = np.concatenate([_isotonic(y[: p + 1])[0], _isotonic(y[p + 1 :][::-1])[0][::-1]])
+    return fit, int(np.argmax(fit))
 
 
 def bh_curve_from_table(

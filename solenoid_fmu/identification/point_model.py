@@ -89,7 +89,8 @@ class PointModel:
             if x != prev_x:
                 u_prev, i_prev = None, None
             start = self.u[k] if self.u[k] is not None else u_prev
-            sol = s.solve(float(i), float(x), u0=start, i0_A=i_prev if start is u_prev else None)
+            sol = s.solve(float(i), float(x), u0=start, i0_A=i_prev if start is u_prev else None,
+                          forces=self.kind[k] == "force")
             self.solves += 1
             steps += max(sol.newton_iterations, 1)
             out[k] = sol.psi_Wb if self.kind[k] == "psi" else sol.force_coenergy_N
@@ -167,7 +168,7 @@ class PointModel:
                     x = float(np.clip(self.x_m[k] + sign * FORCE_FD_DX_M, lo_x, hi_x))
                     if x != prev_x:
                         u_prev = None
-                    sol = s.solve(float(self.i_A[k]), x, u0=self.u[k] if u_prev is None else u_prev)
+                    sol = s.solve(float(self.i_A[k]), x, u0=self.u[k] if u_prev is None else u_prev, forces=False)
                     self.solves += 1
                     self.newton_steps += max(sol.newton_iterations, 1)
                     dW = self._dcoenergy(s.config(x), sol.u, pairs, h)
@@ -181,7 +182,7 @@ class PointModel:
         """H [A/m] at the steel's quadrature points and their volumes [m^3] at (i_A, x_m)."""
         s = self.solver
         s.material = self.curve_fn(theta)
-        sol = s.solve(float(i_A), float(x_m))
+        sol = s.solve(float(i_A), float(x_m), forces=False)
         cfg = s.config(float(x_m))
         g = s.grad(cfg, sol.u)[:, s.steel]
         B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
