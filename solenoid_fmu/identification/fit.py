@@ -99,11 +99,19 @@ class LMResult:
         self.x, self.status, self.message, self.nfev = x, status, message, nfev
 
 
-def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, project=None) -> LMResult:
+def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, project=None,
+                 max_step: float | None = None) -> LMResult:
     """Levenberg-Marquardt with the step projected onto the bounds (a box), or by ``project(x)``
     when given: one residual evaluation (FEM sweep) per trial step and one Jacobian (adjoint solves)
     per accepted step. Status as scipy's least_squares: 0 budget, 2 cost converged (relative
-    decrease < ftol)."""
+    decrease < ftol).
+
+    Damping (Marquardt's diagonal scaling) adapted by the gain ratio rho (actual over predicted
+    decrease of the cost, Nielsen's rule: mu *= max(1/3, 1 - (2 rho - 1)^3) after a success, mu *= 2^k
+    after the k-th failure in a row). ``max_step`` caps the largest parameter change of a step (in
+    the parameters' units): a fit far from its start does not spend its first evaluations on steps
+    the linearization cannot take: it is a trust radius, halved (below the failed step) after a
+    failure, doubled (up to 4 ``max_step``) after a step the linear model predicted well (rho > 0.75)."""
     if project is None:
         def project(v):
             return np.clip(v, lo, hi)
@@ -111,29 +119,43 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
     r = residual(x)
     cost = float(r @ r)
     J = jac(x)
-    mu = 1e-3
+    mu, nu = 1e-3, 2.0
+    radius = max_step
     nfev = 1
     while nfev < max_nfev:
         A = J.T @ J
         g = J.T @ r
         dA = np.diag(A).copy() + 1e-12
         step = -np.linalg.solve(A + mu * np.diag(dA), g)
+        big = float(np.max(np.abs(step))) if step.size else 0.0
+        if radius is not None and big > radius:
+            step *= radius / big
         xn = project(x + step)
+        d = xn - x
+        pred = cost - float(np.sum((r + J @ d) ** 2))  # the linear model's decrease
         rn = residual(xn)
         nfev += 1
         cn = float(rn @ rn)
         if cn < cost:
             done = (cost - cn) < ftol * cost
+            rho = (cost - cn) / pred if pred > 0 else 0.0
             x, r, cost = xn, rn, cn
-            mu = max(mu / 5.0, 1e-8)
+            mu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-8)
+            nu = 2.0
+            if radius is not None and rho > 0.75:
+                radius = min(max(radius, 2.0 * float(np.max(np.abs(d)))), 4.0 * max_step)
             if done:
                 return LMResult(x, 2, "cost converged (ftol)", nfev)
             J = jac(x)
         else:
-            mu *= 8.0
+            mu *= nu
+            nu *= 2.0
+            if radius is not None:
+                radius = 0.5 * min(radius, max(float(np.max(np.abs(d))), 1e-6))
             if mu > 1e8:
                 return LMResult(x, 3, "step small (xtol)", nfev)
     return LMResult(x, 0, "evaluation budget reached", nfev)
+
 
 def choose_currents(i_A, psi_Wb, n: int = DEFAULT_N_CURRENTS) -> tuple[np.ndarray, np.ndarray]:
     """The currents [A] the fit uses, and the measured flux there (linear interpolation).
