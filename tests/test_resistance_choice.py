@@ -1,0 +1,49 @@
+"""Which resistance the identification's eq.-4 flux uses (:func:`~solenoid_fmu.identification.campaign_data.
+resistance_choice`): the header's, unless the coil heats or a recording's own data pin its R away from it.
+
+A three-cycle flux triangle through a coil with a known flux linkage (eq. 4 exact, no hysteresis): its
+cycle closures pin R to about 1e-4 relative. A header 0.1 % off (inside the header's own 0.5 % prior, so
+not "disagreeing" with it) drifts the eq.-4 flux by ~1 % of the peak per cycle; the data must win.
+"""
+
+import numpy as np
+import pytest
+
+from solenoid_fmu.identification.campaign_data import HEADER_OFF_SIGMAS, flux_points, resistance_choice
+from solenoid_fmu.identification.fit import choose_currents
+from solenoid_fmu.measure import make_recording
+
+R_TRUE = 12.0
+X_M = 1.5e-3
+
+
+def _psi(i):
+    """A saturating flux linkage [Wb] of the current [A]."""
+    return 0.3 * np.tanh(i / 1.2) * 1.2
+
+
+def _triangles(R_header, cycles=3, peak_A=1.5, period_s=1.6, fs=4000.0, seed=1):
+    rest = 0.1
+    t = np.arange(0.0, 2 * rest + cycles * period_s, 1.0 / fs)
+    tc = np.clip(t - rest, 0.0, cycles * period_s)
+    phase = (tc / period_s) % 1.0
+    i = np.where(t < rest + cycles * period_s, peak_A * (1.0 - np.abs(2.0 * phase - 1.0)), 0.0)
+    i[t < rest] = 0.0
+    u = R_TRUE * i + np.gradient(_psi(i), t)
+    u = u + 1e-4 * np.random.default_rng(seed).standard_normal(t.size)
+    return make_recording("flux", "PS45", t, i, voltage_V=u, position_m=X_M, coil_resistance_ohm=R_header)
+
+
+@pytest.mark.parametrize("header_off", [0.0, 1e-3])
+def test_a_recordings_own_closures_overrule_a_header_a_little_off(header_off):
+    rec = _triangles(R_TRUE * (1.0 + header_off))
+    camp, use_tracks, notes = resistance_choice([rec])
+    tr = camp.track_for(rec)
+    assert tr.pinned and abs(tr.R0_ohm / R_TRUE - 1.0) < 2e-4  # the closures find the true R
+    off_sigmas = abs(R_TRUE * (1 + header_off) - tr.R0_ohm) / tr.R0_sigma_ohm
+    assert use_tracks == (off_sigmas > HEADER_OFF_SIGMAS) == (header_off > 0), (off_sigmas, notes)
+    if use_tracks:
+        assert "its own data pin R" in notes[0] and not tr.header_disagrees  # within the header's prior
+    pts, _, _ = flux_points([rec], 6, choose_currents)
+    err = max(abs(p.value / _psi(p.i_A) - 1.0) for p in pts if p.i_A > 0.3)
+    assert err < 2e-3, err  # with the header R uncorrected: ~1 % of the peak per cycle
