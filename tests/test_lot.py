@@ -8,7 +8,8 @@ coil resistance 0.3 %), 2 of them with an undeclared in-spec effect (coil heatin
 pipeline's ``smoke`` preset, its identification starting from the nominal steel (``--start-material``).
 
 The lot runs in one test (so that under ``pytest -n 2`` one xdist worker runs it, on its own 2 processes, once):
-the local run interrupted and run again, the Dask run, then the checks, each a function below.
+the local run interrupted and run again, the Dask run (three of the units), then the checks, each a function
+below.
 """
 
 import json
@@ -130,17 +131,25 @@ def _local_run(dirs, out: Path) -> dict:
             "after": _complete(out, names), "names": names, "dirs": dirs}
 
 
+def _cluster_dirs(dirs) -> list[Path]:
+    """The part of the lot the Dask run takes: an in-spec unit, an out-of-spec one and the malformed one
+    (the engines are compared unit by unit; the lot's flags come from those rows on the client either way)."""
+    inspec = next(d for d in dirs if d.name not in OUT_OF_SPEC and d.name != BAD)
+    out = next(d for d in dirs if d.name in OUT_OF_SPEC)
+    return [inspec, out, dirs[-1]]
+
+
 def _cluster_run(dirs, out: Path) -> dict:
-    """The same lot through a Dask LocalCluster of 2 worker processes (one thread each), by its address."""
+    """Part of the lot through a Dask LocalCluster of 2 worker processes (one thread each), by its address."""
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        res = run_batch(dirs, out, scheduler=cluster.scheduler_address, preset="smoke",
+        res = run_batch(_cluster_dirs(dirs), out, scheduler=cluster.scheduler_address, preset="smoke",
                         start_material=lotdata.NOMINAL_STEEL_CSV, progress=False)
     return {"out": out, "res": res}
 
 
-@pytest.mark.slow  # 16 smoke units and a few wasted by the interruption: ~1.5-2 min on 2 idle cores
+@pytest.mark.slow  # 11 smoke units and a few wasted by the interruption
 def test_a_lot_on_a_local_pool_and_on_a_dask_cluster(tmp_path):
     dirs = _draw_lot(tmp_path)
     local = _local_run(dirs, tmp_path / "out-local")
@@ -169,8 +178,9 @@ def _ctrl_c_keeps_finished_units_and_the_rerun_redoes_only_the_rest(r):
 def _dask_cluster_gives_the_local_results(local_run, cluster_run):
     local = {row["unit"]: row for row in local_run["rerun"]["rows"]}
     cluster = {row["unit"]: row for row in cluster_run["res"]["rows"]}
-    assert set(local) == set(cluster) and len(cluster) >= 8
-    for name, row in local.items():
+    assert set(cluster) == {d.name for d in _cluster_dirs(local_run["dirs"])}
+    assert {cluster[n]["status"] for n in cluster} == {"ok", "failed"}
+    for name, row in ((n, local[n]) for n in cluster):
         assert row["status"] == cluster[name]["status"], name
         for f in FEATURES:
             a, b = row[f], cluster[name][f]
@@ -183,7 +193,6 @@ def _dask_cluster_gives_the_local_results(local_run, cluster_run):
             assert sa["effects_found"] == sb["effects_found"]
             for ea, eb in zip(sa["errors"], sb["errors"], strict=True):
                 assert ea["after"] == pytest.approx(eb["after"], rel=1e-12, abs=1e-15)
-    assert cluster_run["res"]["flagged"] == local_run["rerun"]["flagged"]
 
 
 def _the_lot_flags_exactly_the_out_of_spec_units(local_run):
