@@ -155,8 +155,10 @@ def test_every_argument_is_checked_before_any_work(work, tmp_path):
     ]
     for res in _cli_cases(cases):
         line = _one_line(res, usage=True)
-        assert "expected a" in line and res["s"] < 2.0, res
-    assert not out.exists()  # nothing written: before, pipeline had written material/ after minutes
+        assert "expected a" in line, res
+    # nothing written: before, pipeline had written material/ after minutes (no wall-time bound here: a
+    # loaded CI machine took 4.3 s to start the interpreter; speed lives in benchmarks)
+    assert not out.exists()
 
 
 # -- item 11: absurd values ----------------------------------------------------------------------------
@@ -212,7 +214,7 @@ def test_messages_name_plain_numbers_the_folder_and_refuse_bad_names_first(work,
             assert f"{ro / name}: cannot write: permission denied" in msg and "/." not in msg, msg
     for r in res[3:]:
         msg = _one_line(r)
-        assert "file name has a control character" in msg and r["s"] < 2.0, r
+        assert "file name has a control character" in msg, r  # refused before any work: nothing written (below)
     assert not list(tmp_path.glob("bad*"))
     ro.chmod(0o755)
 

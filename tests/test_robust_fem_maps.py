@@ -86,11 +86,11 @@ def test_sweep_retries_a_failed_point_from_the_previous_current(ps45, monkeypatc
     assert not plain["newton_recovered"].any()
     original, calls = fem.Solver._solve, []
 
-    def flaky(self, i_A, x_m, u0=None):
+    def flaky(self, i_A, x_m, u0=None, forces=True):
         calls.append((i_A, u0 is not None))
         if i_A == I_A and u0 is not None and sum(c == (I_A, True) for c in calls) == 1:
             raise fem._NewtonFailure(f"Newton did not converge at i = {i_A:g} A (forced)")
-        return original(self, i_A, x_m, u0)
+        return original(self, i_A, x_m, u0, forces)
 
     monkeypatch.setattr(fem.Solver, "_solve", flaky)
     out = fem.sweep_currents(geom, mat, X_M, currents, mesh_size=2.0)
