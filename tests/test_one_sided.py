@@ -3,8 +3,8 @@
 A hysteretic steel on the virtual rig (Preisach hysteresis, no heating, no eddy ladder): the branch mean of
 its unipolar flux loops lies above the magnetization curve the FEM computes (Rayleigh: the mean of a loop
 to H_m exceeds the initial curve by nu H (H_m - H) >= 0, and unipolar loops start from a remanence above
-zero), so the loop's width counts only where a model lies below the mean (``sigma_if_above`` carries the
-floor alone). A current hold's eq.-4 flux starts at zero where the steel starts at its remanence: short by
+zero), so the loop's half-width counts only where a model lies below the mean (``sigma_if_above`` carries
+the floor alone). A current hold's eq.-4 flux starts at zero where the steel starts at its remanence: short by
 it, so the remanence counts only where a model lies above (``sigma_if_below`` without it).
 """
 
@@ -49,8 +49,9 @@ def test_loop_means_lie_above_the_curve_and_their_width_counts_below_only():
     assert np.all(value >= truth - 2 * floor), (value / truth - 1)  # the mean is an upper bound, to noise
     low = np.array([p.i_A for p in pts]) < 0.5  # where the loop is wide: a real one-sided budget
     assert np.all(above[low] < 0.5 * sig[low]) and np.all(above <= sig)
-    # and the two-sided sigma covers the distance to the curve there, the one-sided floor does not
-    assert np.all(np.abs(value - truth)[low] <= 2 * sig[low])
+    # the budget is Rayleigh's bound (one half-width); unipolar loops from a remanence exceed it near the
+    # origin, by up to about twice (README): within 3 sigma here, and far outside the floor alone
+    assert np.all(np.abs(value - truth)[low] <= 3 * sig[low])
     assert np.any(np.abs(value - truth)[low] > 2 * above[low])
 
 

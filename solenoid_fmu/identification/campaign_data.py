@@ -28,10 +28,12 @@ Uncertainty of a point (1 sigma, absolute): a relative floor (:data:`PSI_FLOOR_R
 :data:`FORCE_FLOOR_REL`, of the value or of a fifth of the recording's largest value, whichever
 is larger), and for flux the bias of the branch mean of a rate-independent loop, **one-sided**: the
 mean lies above the magnetization curve (Rayleigh's loops: mean - initial curve = nu H (H_m - H) >= 0,
-at most the half-width w; unipolar loops start from a remanence above zero, which lifts them further:
-1.4-2 w near the origin on the rig's Preisach steel), so where the model lies below the mean the point's
-sigma adds :data:`LOOP_BIAS_WIDTHS` w and the second-order term ``|Psi''| h^2 / 2`` (h: the current
-half-width), and where it lies above, only the floor and the resistance track's share count.
+at most the half-width w), so where the model lies below the mean the point's sigma adds
+:data:`LOOP_BIAS_WIDTHS` w and the second-order term ``|Psi''| h^2 / 2`` (h: the current half-width),
+and where it lies above, only the floor and the resistance track's share count. Unipolar loops start
+from a remanence above zero and lie higher still (1.4-2 w near the origin on the rig's Preisach steel);
+a budget of 2 w there let weakly pinned low fields drift with the prior (X6Cr17: Psi -7.5 % at 0.25 A),
+so the budget stays at Rayleigh's bound.
 
 Units: SI (A, m, Wb, N).
 """
@@ -55,8 +57,9 @@ __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_BIAS_WIDTH
 PSI_FLOOR_REL = 2e-3
 #: Relative 1-sigma floor of a measured force point (load cell, friction not quite symmetric).
 FORCE_FLOOR_REL = 4e-3
-#: Rate-independent loop half-widths the branch mean may lie above the magnetization curve (one-sided).
-LOOP_BIAS_WIDTHS = 2.0
+#: Rate-independent loop half-widths the branch mean may lie above the magnetization curve (one-sided;
+#: Rayleigh's bound for symmetric loops).
+LOOP_BIAS_WIDTHS = 1.0
 #: The coil counts as heating when the campaign's kappa exceeds this many of its sigmas.
 KAPPA_SIGNIFICANT = 3.0
 #: Current rates must differ by this factor among the loops to tell eddy currents from hysteresis.
