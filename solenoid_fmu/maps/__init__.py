@@ -22,7 +22,7 @@ from .eddy import EddyFit, fit_eddy
 from .export import export_combitable2d, export_mat, read_combitable2d
 from .interpolate import force_at, force_psi_at, i_f_at, psi_at
 from .invert import invert_maps, round_trip_error
-from .io import load_maps, name_problem, save_maps
+from .io import encode_maps, load_maps, maps_tables, name_problem, save_maps
 from .sweep import (
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
@@ -43,6 +43,7 @@ __all__ = [
     "InlineExecutor",
     "build_maps",
     "cycle_energy_balance",
+    "encode_maps",
     "default_currents",
     "default_positions",
     "export_combitable2d",
@@ -53,6 +54,7 @@ __all__ = [
     "i_f_at",
     "invert_maps",
     "load_maps",
+    "maps_tables",
     "name_problem",
     "process_pool",
     "psi_at",
