@@ -52,7 +52,9 @@ step's note (``G_eddy_S``: the maps' value and the refit) and the improved maps'
 say so (see :mod:`solenoid_fmu.loop.effects`). Each recording's eq.-4 flux is computed once per
 run (:class:`solenoid_fmu.loop.residuals.FluxCache`).
 
-The reported before/after errors come from the FMUs themselves (fmpy), per recording and signal.
+The reported before/after errors, per recording and signal, come from the model run in this process on the
+maps the FMUs carry (the FMU runs the same model; :func:`solenoid_fmu.loop.validate_model`): the improved FMU
+is an output only, nothing the run writes is read back.
 """
 
 from __future__ import annotations
@@ -65,8 +67,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import MapsError
 from ..fileio import atomic_write_text, check_output_name, jsonable
 from ..fmu import build_fmu, simulate_model
+from ..maps import CharacteristicMaps, maps_tables, save_maps
 from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_MIN_NRMS, DEFAULT_THRESHOLD, diagnose
@@ -76,8 +80,8 @@ from .identifiability import not_identifiable
 from .metrics import full_scales, nrmse_fs
 from .residuals import FluxCache, cases_from_recordings, recording_name
 from .split import split_recordings
-from .tables import ADDABLE, ImproveError, tables_from_fmu, with_effects, write_maps_dir
-from .validation import validate
+from .tables import ADDABLE, ImproveError, maps_from_fmu, with_effects, with_maps_meta
+from .validation import validate_model
 
 DEFAULT_MAX_EFFECTS = 4
 DEFAULT_MIN_GAIN = 0.10
@@ -386,48 +390,123 @@ def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: l
     return effects, tables, cases
 
 
-def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
+@dataclass(frozen=True)
+class ImproveResult:
+    """Outcome of :func:`improve`: the improved model in memory, what was tried, the errors before and after.
+
+    Attributes
+    ----------
+    maps : CharacteristicMaps
+        The improved maps (maps.json ``effects``; a kept eddy ladder's refit ``eddy``).
+    tables : MapTables
+        The same maps as the real-time model's tables.
+    steps : list of Step
+        Every effect tried, in order.
+    diagnoses : list of dict
+        The diagnosis of each round.
+    not_identifiable : dict
+        Effect -> what to add to the campaign to identify it.
+    recordings : list of dict
+        Per recording: ``file``, ``split`` and per signal the errors ``before``/``after`` (RMS, the signal's
+        unit), ``*_nrmse`` (by the recording's range), ``*_nrmse_fs`` (by the full scale per kind).
+    before, after : dict
+        The validations of the model before and after (:func:`solenoid_fmu.loop.validate_model`).
+    source : str
+        The model improved (the FMU's path, or the maps' name).
+    improved_fmu, maps_dir : pathlib.Path or None
+        The improved FMU and its maps directory (``<stem>.maps/``), when one was written.
+    """
+
+    maps: CharacteristicMaps
+    tables: MapTables
+    steps: list
+    diagnoses: list
+    not_identifiable: dict
+    recordings: list
+    before: dict
+    after: dict
+    source: str
+    improved_fmu: Path | None = None
+    maps_dir: Path | None = None
+
+    @property
+    def effects_added(self) -> list:
+        """The effects kept, in the order they were added."""
+        return _kept(self.steps)
+
+    def as_dict(self) -> dict:
+        """The JSON form (``improve.json``): ``effects_added``, ``steps``, ``fmu``, ``improved_fmu``, ``maps``,
+        ``not_identifiable``, ``diagnoses``, ``recordings``, ``before``, ``after``."""
+        return {"fmu": self.source, "improved_fmu": None if self.improved_fmu is None else str(self.improved_fmu),
+                "maps": None if self.maps_dir is None else str(self.maps_dir),
+                "effects_added": self.effects_added, "steps": [s.as_dict() for s in self.steps],
+                "not_identifiable": self.not_identifiable, "diagnoses": self.diagnoses, "recordings": self.recordings,
+                "before": self.before, "after": self.after}
+
+
+def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
             min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None,
-            before_report_dir=None) -> dict:
-    """Add the effects the residual asks for; build the improved FMU; report before and after.
+            before_report_dir=None) -> ImproveResult:
+    """Add the effects the residual asks for; report before and after; build the improved FMU if asked.
+
+    Everything runs in memory: the model is simulated in this process (:func:`validate_model`; the FMU
+    runs the same model on the same maps), and the improved FMU and its maps are outputs only.
 
     Parameters
     ----------
-    fmu_path : path-like
-        The FMU to improve (solenoid-fmu export; its maps travel inside it).
+    model : path-like or CharacteristicMaps
+        The FMU to improve (solenoid-fmu export; its maps are read out of it once), or the maps.
     recordings : list of path-like or Recording
-    out_fmu : path-like
+    out_fmu : path-like, optional
         The improved FMU to write (its maps directory is written beside it, ``<stem>.maps/``).
     report_dir : path-like, optional
-        Validation figures of the improved FMU and ``improve.json``.
+        Validation figures of the improved model and ``improve.json``.
     before_report_dir : path-like, optional
-        Validation figures of the FMU before improvement.
+        Validation figures of the model before improvement.
 
     Returns
     -------
-    dict
-        ``{"effects_added": [...], "steps": [...], "fmu": ..., "improved_fmu": ..., "maps": ...,
-        "recordings": [{"file", "split", "signals": {signal: {"before", "after", "before_nrmse",
-        "after_nrmse", "before_nrmse_fs", "after_nrmse_fs"}}}], "before": validation dict, "after":
-        validation dict}``; before/after are RMS errors in the signal's unit from the FMUs (fmpy),
-        ``*_nrmse`` by the recording's range, ``*_nrmse_fs`` by the full scale per kind.
+    ImproveResult
+        ``as_dict()`` is the JSON form (``improve.json``).
     """
     say = progress or (lambda msg: None)
-    check_output_name(out_fmu)  # before any simulation
+    if out_fmu is not None:
+        out_fmu = check_output_name(out_fmu)  # before any simulation
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     if not recs:
         raise ImproveError("improve needs at least one recording")
-    tables = tables_from_fmu(fmu_path)
+    if isinstance(model, CharacteristicMaps):
+        maps, source = model, model.name
+    else:
+        maps, source = maps_from_fmu(model), str(model)
+    try:
+        tables = maps_tables(maps, where=source)
+    except MapsError as exc:
+        raise ImproveError(str(exc)) from None
     flux_of = FluxCache()
-    improved, steps, diagnoses, _, _, missing = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
-                                                               threshold=threshold, progress=say, flux_of=flux_of)
-    out_fmu = Path(out_fmu)
-    maps_dir = write_maps_dir(improved, fmu_path, out_fmu.with_suffix(".maps"))
-    say(f"building {out_fmu}")
-    build_fmu(maps_dir, out_fmu)
-    say("validating the FMU before and after")
-    before = validate(fmu_path, recs, report_dir=before_report_dir, flux_of=flux_of)
-    after = validate(out_fmu, recs, report_dir=report_dir, flux_of=flux_of)
+    found = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain, threshold=threshold,
+                           progress=say, flux_of=flux_of)
+    improved = with_maps_meta(maps, found.tables)
+    improved_tables = maps_tables(improved, where=source)
+    maps_dir = None
+    if out_fmu is not None:
+        maps_dir = save_maps(improved, out_fmu.with_suffix(".maps"))
+        say(f"building {out_fmu}")
+        build_fmu(improved, out_fmu)
+    say("validating the model before and after")
+    before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of)
+    after = validate_model(improved_tables, recs, label=str(out_fmu or improved.name), report_dir=report_dir,
+                           flux_of=flux_of)
+    result = ImproveResult(improved, improved_tables, found.steps, found.diagnoses, found.not_identifiable,
+                           _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir)
+    if report_dir is not None:
+        Path(report_dir).mkdir(parents=True, exist_ok=True)
+        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result.as_dict()), indent=1) + "\n")
+    return result
+
+
+def _error_rows(recs: list, before: dict, after: dict) -> list:
+    """Per recording (``file``, fit or validation ``split``) and signal: the errors before and after."""
     fit_recs, _ = split_recordings(recs)
     fit_names = {recording_name(r) for r in fit_recs}
     rows = []
@@ -441,14 +520,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
                          "after_nrmse": a.get("nrmse"), "before_nrmse_fs": m.get("nrmse_fs"),
                          "after_nrmse_fs": a.get("nrmse_fs")}
         rows.append({"file": rb["file"], "split": "fit" if rb["file"] in fit_names else "validate", "signals": sig})
-    result = {"fmu": str(fmu_path), "improved_fmu": str(out_fmu), "maps": str(maps_dir),
-              "effects_added": _kept(steps), "steps": [s.as_dict() for s in steps],
-              "not_identifiable": missing,
-              "diagnoses": diagnoses, "recordings": rows, "before": before, "after": after}
-    if report_dir is not None:
-        Path(report_dir).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result), indent=1) + "\n")
-    return result
+    return rows
 
 
 def effects_summary_lines(result: dict) -> list[str]:
