@@ -41,7 +41,6 @@ was interrupted or failed over an earlier complete one leaves a folder that says
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -52,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .argtypes import process_count
 from .errors import SolenoidError
 from .field import load_geometry
 from .fileio import atomic_write_text, dir_lock, jsonable, refuse_overwriting_inputs, require_directory
@@ -468,19 +468,9 @@ def add_cli(sub) -> None:
     p.add_argument("--geometry", help="geometry TOML (default: the packaged PS45)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="full",
                    help="FEM grid quality: full (default), quick (coarse, for checks) or smoke (coarsest, tests)")
-    p.add_argument("--workers", type=_workers, help="processes for the maps sweep (default: all cores)")
+    p.add_argument("--workers", type=process_count, help="processes for the maps sweep (default: all cores)")
     p.add_argument("--json", action="store_true", help="print summary.json's content on stdout")
     p.set_defaults(func=_cli)
-
-
-def _workers(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return n
 
 
 def _cli(args) -> int:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..argtypes import number
+from ..argtypes import number, process_count
 from ..errors import MapsError
 from ..field import MIN_MESH_SIZE, load_geometry, load_material
 from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
@@ -57,16 +57,6 @@ def parse_range(text: str, what: str = "range") -> tuple[float, float, int]:
     return start, stop, n
 
 
-def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {n}")
-    return n
-
-
 def add_cli(subparsers) -> None:
     """Register ``solenoid-fmu maps`` (``eddy`` comes later in the help: :func:`add_eddy_cli`)."""
     _add_maps_cli(subparsers)
@@ -100,7 +90,7 @@ def _add_maps_cli(subparsers) -> None:
                         "current, 26 currents, denser at low currents)")
     p.add_argument("--mesh-size", metavar="H", type=number(MIN_MESH_SIZE), default=1.0,
                    help="mesh-size factor (default 1.0; larger is coarser)")
-    p.add_argument("--workers", metavar="N", type=_positive_int, default=None,
+    p.add_argument("--workers", metavar="N", type=process_count, default=None,
                    help="parallel processes (default: all cores; 1 runs in this process)")
     p.add_argument("-o", "--output", metavar="maps/NAME", help="map directory to write")
     p.add_argument("--from", dest="source", metavar="maps/NAME", help="use an existing map, no sweep")
