@@ -215,6 +215,23 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return Path(path)
 
 
+def write_files(folder, files: dict, what: str) -> None:
+    """Write ``files`` (``{relative path: bytes}``) under ``folder``, creating sub-folders.
+
+    Raises ``ValueError("{what} {rel!r} leaves {folder name}")`` before writing a path that would leave
+    ``folder`` (``..``, an absolute path, a link out), so that data from elsewhere (a lot's worker, a client)
+    cannot write beside it.
+    """
+    folder = Path(folder)
+    root = folder.resolve()
+    for rel, data in files.items():
+        dest = folder / rel
+        if not dest.resolve().is_relative_to(root):
+            raise ValueError(f"{what} {rel!r} leaves the folder {folder.name}")
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_bytes(data)
+
+
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write UTF-8 ``text`` with ``\\n`` line ends to ``path`` atomically."""
     return atomic_write_bytes(path, text.encode("utf-8"))
