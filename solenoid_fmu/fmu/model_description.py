@@ -25,7 +25,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from .. import __version__
+from .._version import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables
 from .interface import (

@@ -64,7 +64,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from .. import __version__
+from .._version import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables
 from .c_sources import default_params, generate_sources

@@ -24,7 +24,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .. import __version__
+from .._version import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables, model_source_files
 from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from .. import __version__
+from .._version import __version__
 from ..errors import MapsError, SolenoidError
 from ..field import sweep_currents
 from .invert import invert_maps

@@ -27,7 +27,7 @@ import numbers
 from datetime import UTC, datetime
 from pathlib import Path
 
-from .. import __version__
+from .._version import __version__
 from ..errors import SolenoidError
 from ..fileio import atomic_write_text
 
