@@ -224,6 +224,47 @@ def build_maps(
     MapsError
         Bad grids, a failed FEM task (naming x), non-monotone Psi(i) (naming x and i).
     """
+    x_m, i_A = _checked_grids(geometry, x_m, i_A, mesh_size)
+    sweep = sweep if sweep is not None else _default_sweep()
+    own_executor = executor is None
+    if own_executor:
+        executor = process_pool()
+    t0 = time.perf_counter()
+    try:
+        psi, force, stress, newton, recovered = _run_sweep(sweep, geometry, material, x_m, i_A, mesh_size, executor,
+                                                           progress)
+    finally:
+        if own_executor:
+            executor.shutdown(wait=True, cancel_futures=True)
+    solver = _solver_record(sweep, executor, mesh_size, time.perf_counter() - t0, x_m, i_A, newton, recovered)
+    metadata = _metadata(geometry, material, name, mesh_size, solver)
+    return invert_maps(x_m, i_A, psi, force, stress, metadata=metadata, npsi=npsi)
+
+
+def _solver_record(sweep, executor, mesh_size, wall_s: float, x_m, i_A, newton, recovered) -> dict:
+    """The provenance's ``solver`` entry: the sweep function, executor, wall time [s], Newton counts, the points
+    Newton recovered, and the FEM's ``SOLVER_SETTINGS`` where the sweep's module has them."""
+    solver = {
+        "sweep": f"{getattr(sweep, '__module__', '?')}.{getattr(sweep, '__qualname__', repr(sweep))}",
+        "mesh_size": float(mesh_size),
+        "warm_start": "along the current list at each position",
+        "executor": type(executor).__name__,
+        "workers": getattr(executor, "_max_workers", None),
+        "wall_time_s": round(wall_s, 3),
+        "operating_points": int(newton.size),
+        "newton_iterations_total": int(newton.sum()),
+        "newton_iterations_max": int(newton.max()),
+        # (x [mm], i [A]) of the points where Newton stalled (accepted) or was recovered by load stepping
+        "newton_recovered_x_mm_i_A": [[float(x_m[j]) * 1e3, float(i_A[k])] for k, j in np.argwhere(recovered)],
+    }
+    fem_settings = getattr(sys.modules.get(getattr(sweep, "__module__", ""), None), "SOLVER_SETTINGS", None)
+    if isinstance(fem_settings, dict):
+        solver["fem_settings"] = json.loads(json.dumps(fem_settings, default=str))
+    return solver
+
+
+def _checked_grids(geometry, x_m, i_A, mesh_size) -> tuple[np.ndarray, np.ndarray]:
+    """The sweep's positions [m] and currents [A] (defaults filled in), checked against the geometry."""
     stroke, coil = geometry.stroke, geometry.coil
     x_default = default_positions(stroke.min_m, stroke.max_m, DEFAULT_NX)
     i_default = default_currents(DEFAULT_CURRENT_FACTOR * coil.max_current_A, DEFAULT_NI)
@@ -244,17 +285,18 @@ def build_maps(
         )
     if not (isinstance(mesh_size, int | float) and math.isfinite(mesh_size) and mesh_size > 0):
         raise MapsError(f"mesh_size must be a finite number > 0, got {mesh_size!r}")
-    sweep = sweep if sweep is not None else _default_sweep()
-    own_executor = executor is None
-    if own_executor:
-        executor = process_pool()
+    return x_m, i_A
+
+
+def _run_sweep(sweep, geometry, material, x_m, i_A, mesh_size, executor, progress: bool) -> tuple:
+    """One task per position on ``executor``; the tables (i, x) of Psi, force (co-energy and Maxwell stress),
+    Newton iterations and recovered points. A failed task cancels the others (:func:`build_maps`)."""
     ni, nx = len(i_A), len(x_m)
     psi = np.empty((ni, nx))
     force = np.empty((ni, nx))
     stress = np.empty((ni, nx))
     newton = np.zeros((ni, nx))
     recovered = np.zeros((ni, nx))
-    t0 = time.perf_counter()
     bar = tqdm(total=ni * nx, desc="FEM sweep", unit="pt", file=sys.stderr, disable=not progress,
                dynamic_ncols=True)
     futures: dict[cf.Future, int] = {}
@@ -285,29 +327,14 @@ def build_maps(
         raise
     finally:
         bar.close()
-        if own_executor:
-            executor.shutdown(wait=True, cancel_futures=True)
-    wall = time.perf_counter() - t0
-    workers = getattr(executor, "_max_workers", None)
+    return psi, force, stress, newton, recovered
+
+
+def _metadata(geometry, material, name, mesh_size, solver: dict) -> dict:
+    """The maps' metadata (maps.json without the arrays' entries): name, coil, stroke, eddy, provenance."""
+    stroke, coil = geometry.stroke, geometry.coil
     version = _code_version()
-    sweep_name = f"{getattr(sweep, '__module__', '?')}.{getattr(sweep, '__qualname__', repr(sweep))}"
-    solver = {
-        "sweep": sweep_name,
-        "mesh_size": float(mesh_size),
-        "warm_start": "along the current list at each position",
-        "executor": type(executor).__name__,
-        "workers": workers,
-        "wall_time_s": round(wall, 3),
-        "operating_points": int(ni * nx),
-        "newton_iterations_total": int(newton.sum()),
-        "newton_iterations_max": int(newton.max()),
-        # (x [mm], i [A]) of the points where Newton stalled (accepted) or was recovered by load stepping
-        "newton_recovered_x_mm_i_A": [[float(x_m[j]) * 1e3, float(i_A[k])] for k, j in np.argwhere(recovered)],
-    }
-    fem_settings = getattr(sys.modules.get(getattr(sweep, "__module__", ""), None), "SOLVER_SETTINGS", None)
-    if isinstance(fem_settings, dict):
-        solver["fem_settings"] = json.loads(json.dumps(fem_settings, default=str))
-    metadata = {
+    return {
         "name": name or str(geometry.name),
         "force_method": "coenergy",
         "coil": {
@@ -332,7 +359,6 @@ def build_maps(
             "solver": solver,
         },
     }
-    return invert_maps(x_m, i_A, psi, force, stress, metadata=metadata, npsi=npsi)
 
 
 def _sweep_columns(result, ni: int, x: float):
