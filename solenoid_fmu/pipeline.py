@@ -65,10 +65,10 @@ from .maps import (
     build_maps,
     default_currents,
     default_positions,
-    fit_eddy,
     name_problem,
     process_pool,
     save_maps,
+    with_fitted_eddy,
 )
 from .measure import read_recording, write_recording
 from .report import write_campaign_report
@@ -192,10 +192,9 @@ def campaign_maps(geometry, curve, recordings, eddy_recordings=None, *, preset: 
     if not eddy_recs:
         say("   no eddy recording: G_eddy stays 0")
         return maps, None
-    eddy = fit_eddy(eddy_recs, maps)
+    maps, eddy = with_fitted_eddy(maps, eddy_recs)
     say(f"   G_eddy = {eddy.G_model_S * 1e3:.4g} mS (R^2 {eddy.r2:.3f}); {eddy.message}")
-    return maps.with_eddy(eddy.G_model_S, source=", ".join(r.path.name if r.path is not None else r.kind
-                                                                     for r in eddy_recs)), eddy
+    return maps, eddy
 
 
 def effects_found(effects_added, eddy) -> list[str]:

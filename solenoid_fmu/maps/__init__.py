@@ -18,7 +18,7 @@ positive when it pulls the armature towards the pole (closes the working gap x).
 """
 
 from .check import CycleEnergy, cycle_energy_balance, rectangle_cycle
-from .eddy import EddyFit, fit_eddy
+from .eddy import EddyFit, fit_eddy, with_fitted_eddy
 from .export import export_combitable2d, export_mat, read_combitable2d
 from .interpolate import force_at, force_psi_at, i_f_at, psi_at
 from .invert import invert_maps, round_trip_error
@@ -62,4 +62,5 @@ __all__ = [
     "rectangle_cycle",
     "round_trip_error",
     "save_maps",
+    "with_fitted_eddy",
 ]

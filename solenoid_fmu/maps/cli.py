@@ -15,7 +15,7 @@ from ..errors import MapsError
 from ..field import MIN_MESH_SIZE, load_geometry, load_material
 from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
 from ..realtime import MAPS_JSON, MAPS_NPZ
-from .eddy import fit_eddy
+from .eddy import with_fitted_eddy
 from .export import DERIVED_FILES, DERIVED_PLOTS, export_combitable2d, export_mat, remove_stale_exports
 from .io import load_maps, name_problem, save_maps
 from .plots import plot_maps
@@ -198,11 +198,9 @@ def add_eddy_cli(sub) -> None:
 
 
 def _eddy_cli(args) -> int:
-    maps = load_maps(args.maps)
-    fit = fit_eddy(args.recordings, maps)
+    fitted, fit = with_fitted_eddy(load_maps(args.maps), args.recordings)
     if args.write:
-        save_maps(maps.with_eddy(fit.G_model_S, source=", ".join(Path(r).name for r in args.recordings)),
-                  args.maps)
+        save_maps(fitted, args.maps)
     if args.json:
         print(json.dumps(fit.as_dict()))
         return 0
