@@ -192,51 +192,25 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     if not recordings:
         raise ImproveError("improve needs at least one recording")
     threshold = DEFAULT_THRESHOLD if threshold is None else threshold
-    try_threshold = min(threshold, TRY_THRESHOLD)
     say = progress or (lambda msg: None)
     fit_recs, val_recs = split_recordings(recordings)
-    val_names = {recording_name(r) for r in val_recs}
-    fit_names = {recording_name(r) for r in fit_recs}
+    flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
+    run = _Run(recordings, fit_recs, {recording_name(r) for r in fit_recs}, {recording_name(r) for r in val_recs},
+               flux_of, say)
     effects = dict(tables.meta.get("effects") or {})
     steps: list[Step] = []
-    diagnoses = []
+    diagnoses: list = []
     tried: set = set()
-    flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
     missing = not_identifiable(recordings, flux_of)
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
     cases = cases0 = _cases(tables, recordings, say, flux_of)
     heat = None if "heating" in effects else heating_from_resistance(recordings, tables)
     if heat is not None:
-        section, note = heat
-        say(f"heating from the resistance tracks: kappa {note['sigmas']:.1f} sigma above zero, "
-            f"C_th = {section['C_th_J_per_K']:.4g} J/K")
-        trial_fx = dict(effects, heating=section)
-        trial = with_effects(tables, trial_fx)
-        trial_cases = _cases(trial, recordings, say, flux_of)
-        before, after = _error(cases, val_names), _error(trial_cases, val_names)
-        ok = after <= (1.0 + min_gain) * before  # measured: kept unless rejected by the margin
-        steps.append(Step("heating", ok, params=section, heldout_before=before, heldout_after=after,
-                          note=json.dumps(dict(note, judged="resistance evidence; kept unless the validation error "
-                                                            "grows by min_gain or more"))))
-        say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
-        if ok:
-            effects, tables, cases = trial_fx, trial, trial_cases
-            run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
-            effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
-                                                          heating_first=True, min_fall=0.1 * min_gain)
+        effects, tables, cases = _add_measured_heating(run, heat, effects, tables, cases, steps, min_gain)
         tried.add("heating")
     while len(_kept(steps)) < max_effects:
-        d = diagnose(cases, threshold=threshold)
-        diagnoses.append(d.as_dict())
-        significant = any(v >= DEFAULT_MIN_NRMS for v in d.residual_nrms.values())
-        pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
-                     and c.effect not in tried and significant), None)
-        if pick is None and significant:  # one recording's large residual may drown the others' evidence
-            d = diagnose(cases, threshold=threshold, balanced=True)
-            diagnoses.append(dict(d.as_dict(), balanced=True))
-            pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
-                         and c.effect not in tried), None)
+        pick, d = _pick(cases, threshold, tried, diagnoses)
         if pick is None:
             say("no further effect clears the diagnosis threshold")
             break
@@ -249,46 +223,10 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         best_signal = max(cand.per_signal, key=cand.per_signal.get, default=None)
         say(f"adding {pick} (diagnosis score {cand.score:.3f}"
             + (f"; {best_signal} {cand.per_signal[best_signal]:.3f})" if best_signal else ")"))
-        try:
-            section, note, replaced = _fit_effect(pick, tables, effects, fit_recs,
-                                                  [c for c in cases if c.name in fit_names], flux_of)
-        except ImproveError as exc:
-            steps.append(Step(pick, False, note=str(exc)))
-            say(f"  not added: {exc}")
-            continue
-        trial_fx = dict(effects, **{ADDABLE[pick]: section})
-        trial = with_effects(tables, trial_fx, **replaced)
-        trial_cases = _cases(trial, recordings, say, flux_of)
-        before, after = _error(cases, val_names), _error(trial_cases, val_names)
-        ok = after < (1.0 - min_gain) * before
-        if not ok and pick in FEW_PARAMETERS:
-            # a one- or two-parameter effect whose evidence sits in a few recordings: one fold may be
-            # too weak to estimate it. Fitted on all recordings, it must cut the error over all of them
-            # by min_gain, and the fit-part estimate must not make the validation recordings worse.
-            try:
-                section_all, note_all, replaced_all = _fit_effect(pick, tables, effects, recordings, cases, flux_of)
-            except ImproveError:
-                section_all = None
-            if section_all is not None:
-                all_names = val_names | fit_names
-                trial_all_fx = dict(effects, **{ADDABLE[pick]: section_all})
-                trial_all = with_effects(tables, trial_all_fx, **replaced_all)
-                cases_all = _cases(trial_all, recordings, say, flux_of)
-                b_all, a_all = _error(cases, all_names), _error(cases_all, all_names)
-                val_ok = after <= (1.0 + 0.1 * min_gain) * before  # not worse beyond a tenth of the gain asked for
-                if a_all < (1.0 - min_gain) * b_all and val_ok:
-                    note = dict(note_all, judged=f"in-sample on all recordings (few parameters; held out "
-                                                 f"{after:.3g} vs {before:.3g}: the validation part holds too "
-                                                 "little of its evidence)")
-                    ok, before, after = True, b_all, a_all
-                    section, trial_fx, trial, trial_cases = section_all, trial_all_fx, trial_all, cases_all
-        steps.append(Step(pick, ok, params=section, heldout_before=before, heldout_after=after,
-                          note=json.dumps(note)))
-        say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
-        if ok:
-            effects, tables, cases = trial_fx, trial, trial_cases
+        kept = _try_effect(run, pick, effects, tables, cases, steps, min_gain)
+        if kept is not None:
+            (effects, tables, cases), note = kept
             if pick == "heating":
-                run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
                 effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps,
                                                               heat_on_all="judged" in note)
             # an effect rejected before may have been masked by the one just added: it may be tried again
@@ -297,10 +235,98 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
                                                       for s in steps[1:]):
         # the heating from the tracks was refitted on the flux residual before the effects fitted along the
         # flux were in: once more now that their part of the residual is modelled
-        run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
         effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
                                                       heating_first=True, min_fall=0.1 * min_gain)
     return Improvement(tables, steps, diagnoses, cases0, cases, missing)
+
+
+def _add_measured_heating(run, heat: tuple, effects: dict, tables, cases: list, steps: list, min_gain: float):
+    """Add the heating the resistance tracks measure (module docstring); the (effects, tables, cases) after."""
+    section, note = heat
+    run.say(f"heating from the resistance tracks: kappa {note['sigmas']:.1f} sigma above zero, "
+            f"C_th = {section['C_th_J_per_K']:.4g} J/K")
+    trial_fx = dict(effects, heating=section)
+    trial = with_effects(tables, trial_fx)
+    trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+    before, after = _error(cases, run.val_names), _error(trial_cases, run.val_names)
+    ok = after <= (1.0 + min_gain) * before  # measured: kept unless rejected by the margin
+    steps.append(Step("heating", ok, params=section, heldout_before=before, heldout_after=after,
+                      note=json.dumps(dict(note, judged="resistance evidence; kept unless the validation error "
+                                                        "grows by min_gain or more"))))
+    run.say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
+    if not ok:
+        return effects, tables, cases
+    return _refit_after_heating(run, trial_fx, trial, trial_cases, steps, heat_on_all=True, heating_first=True,
+                                min_fall=0.1 * min_gain)
+
+
+def _pick(cases: list, threshold: float, tried: set, diagnoses: list):
+    """The next effect to try (None: none) and the diagnosis that names it; appends the diagnoses made.
+
+    While the residual is significant, the best-ranked addable effect not yet tried whose :func:`_try_score`
+    reaches :data:`TRY_THRESHOLD` (or the diagnosis threshold if lower); if there is none, the same on the
+    balanced diagnosis (one recording's large residual may drown the others' evidence)."""
+    try_threshold = min(threshold, TRY_THRESHOLD)
+    d = diagnose(cases, threshold=threshold)
+    diagnoses.append(d.as_dict())
+    if not any(v >= DEFAULT_MIN_NRMS for v in d.residual_nrms.values()):
+        return None, d
+    pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
+                 and c.effect not in tried), None)
+    if pick is None:
+        d = diagnose(cases, threshold=threshold, balanced=True)
+        diagnoses.append(dict(d.as_dict(), balanced=True))
+        pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
+                     and c.effect not in tried), None)
+    return pick, d
+
+
+def _try_effect(run, pick: str, effects: dict, tables, cases: list, steps: list, min_gain: float):
+    """Fit ``pick`` and judge it (module docstring, step 3); appends its :class:`Step`. When it is kept, the
+    (effects, tables, cases) with it and the fit's note; else None."""
+    try:
+        section, note, replaced = _fit_effect(pick, tables, effects, run.fit_recs,
+                                              [c for c in cases if c.name in run.fit_names], run.flux_of)
+    except ImproveError as exc:
+        steps.append(Step(pick, False, note=str(exc)))
+        run.say(f"  not added: {exc}")
+        return None
+    trial_fx = dict(effects, **{ADDABLE[pick]: section})
+    trial = with_effects(tables, trial_fx, **replaced)
+    trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+    before, after = _error(cases, run.val_names), _error(trial_cases, run.val_names)
+    ok = after < (1.0 - min_gain) * before
+    if not ok and pick in FEW_PARAMETERS:
+        on_all = _judged_on_all(run, pick, effects, tables, cases, (before, after), min_gain)
+        if on_all is not None:
+            ok = True
+            section, note, (trial_fx, trial, trial_cases), (before, after) = on_all
+    steps.append(Step(pick, ok, params=section, heldout_before=before, heldout_after=after, note=json.dumps(note)))
+    run.say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
+    return ((trial_fx, trial, trial_cases), note) if ok else None
+
+
+def _judged_on_all(run, pick: str, effects: dict, tables, cases: list, held_out: tuple, min_gain: float):
+    """The gate of a one- or two-parameter effect whose evidence sits in a few recordings (one fold may be too
+    weak to estimate it): fitted on all recordings, it must cut the error over all of them by ``min_gain``,
+    and the fit-part estimate (``held_out``: its validation errors before, after) must not make the
+    validation recordings worse beyond a tenth of that. (section, note, trial, errors) if it passes, else None.
+    """
+    try:
+        section, note, replaced = _fit_effect(pick, tables, effects, run.recordings, cases, run.flux_of)
+    except ImproveError:
+        return None
+    before, after = held_out
+    all_names = run.val_names | run.fit_names
+    trial_fx = dict(effects, **{ADDABLE[pick]: section})
+    trial = with_effects(tables, trial_fx, **replaced)
+    trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+    b_all, a_all = _error(cases, all_names), _error(trial_cases, all_names)
+    if not (a_all < (1.0 - min_gain) * b_all and after <= (1.0 + 0.1 * min_gain) * before):
+        return None
+    note = dict(note, judged=f"in-sample on all recordings (few parameters; held out {after:.3g} vs {before:.3g}: "
+                             "the validation part holds too little of its evidence)")
+    return section, note, (trial_fx, trial, trial_cases), (b_all, a_all)
 
 
 def _try_score(c) -> float:
