@@ -1,6 +1,6 @@
 """Close the loop: add the effect the diagnosis names to the real-time model, fit it, keep it if it pays.
 
-The loop (issue 7), on a campaign of recordings and an FMU built from characteristic maps:
+The loop, on a campaign of recordings and the characteristic maps of a model (or the FMU that carries them):
 
 1. simulate every recording with the current model and diagnose the residual
    (:mod:`solenoid_fmu.loop.diagnosis`);
@@ -46,7 +46,7 @@ the flux of a recording that starts energized is compared as a change from the m
 its first sample; the gate's error is the full-scale NRMSE per kind (:func:`_error`), so that no
 single recording can swing it.
 
-The maps with effects are read and written by :mod:`solenoid_fmu.loop.tables`. A kept eddy ladder
+The maps gain their effect sections in :mod:`solenoid_fmu.loop.tables` (in memory). A kept eddy ladder
 brings its own refit of the maps' single eddy conductance, which replaces the maps' value: the
 step's note (``G_eddy_S``: the maps' value and the refit) and the improved maps' ``eddy.source``
 say so (see :mod:`solenoid_fmu.loop.effects`). Each recording's eq.-4 flux is computed once per
