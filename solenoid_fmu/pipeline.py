@@ -426,7 +426,8 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         suffix = " (heating-corrected)"
     t0 = run.step("report")
     summary = _summary(run, paths, skipped, ident, maps, eddy, (fmu, native, native_improved), res, first_round)
-    html_path = write_campaign_report(run.out / "report.html", run.name, summary, ident, res.as_dict(), res.before)
+    html_path = write_campaign_report(run.out / "report.html", run.name, summary, ident, res.as_dict(), res.before,
+                                      images=res.images)
     summary["report"] = str(html_path)
     run.done("report", t0)
     run.times["total"] = time.perf_counter() - run.t_all

@@ -441,6 +441,8 @@ class ImproveResult:
         The model improved (the FMU's path, or the maps' name).
     improved_fmu, maps_dir : pathlib.Path or None
         The improved FMU and its maps directory (``<stem>.maps/``), when one was written.
+    images : dict
+        The validation figures written (``report_dir``, ``before_report_dir``) as ``{str(path): PNG bytes}``.
     """
 
     maps: CharacteristicMaps
@@ -454,6 +456,7 @@ class ImproveResult:
     source: str
     improved_fmu: Path | None = None
     maps_dir: Path | None = None
+    images: dict = field(default_factory=dict, repr=False)
 
     @property
     def effects_added(self) -> list:
@@ -520,11 +523,12 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
         say(f"building {out_fmu}")
         build_fmu(improved, out_fmu)
     say("validating the model before and after")
-    before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of)
+    images: dict = {}
+    before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of, images=images)
     after = validate_model(improved_tables, recs, label=str(out_fmu or improved.name), report_dir=report_dir,
-                           flux_of=flux_of)
+                           flux_of=flux_of, images=images)
     result = ImproveResult(improved, improved_tables, found.steps, found.diagnoses, found.not_identifiable,
-                           _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir)
+                           _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir, images)
     if report_dir is not None:
         Path(report_dir).mkdir(parents=True, exist_ok=True)
         atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result.as_dict()), indent=1) + "\n")

@@ -41,10 +41,20 @@ def _stacked(case, title: str, residual: bool):
     return fig
 
 
-def _save_png(fig, path: Path) -> Path:
+def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
-    return atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def overlay_png(case) -> bytes:
+    """:func:`plot_overlay`'s PNG, in memory."""
+    return _png(_stacked(case, f"{case.name}: measured vs simulated", residual=False))
+
+
+def residual_png(case) -> bytes:
+    """:func:`plot_residual`'s PNG, in memory."""
+    return _png(_stacked(case, f"{case.name}: residual (measured - simulated)", residual=True))
 
 
 def plot_overlay(case, path) -> Path:
@@ -56,7 +66,7 @@ def plot_overlay(case, path) -> Path:
     path : path-like
         PNG file to write (atomically).
     """
-    return _save_png(_stacked(case, f"{case.name}: measured vs simulated", residual=False), Path(path))
+    return atomic_write_bytes(Path(path), overlay_png(case))
 
 
 def plot_residual(case, path) -> Path:
@@ -68,4 +78,4 @@ def plot_residual(case, path) -> Path:
     path : path-like
         PNG file to write (atomically).
     """
-    return _save_png(_stacked(case, f"{case.name}: residual (measured - simulated)", residual=True), Path(path))
+    return atomic_write_bytes(Path(path), residual_png(case))

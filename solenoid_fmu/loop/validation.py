@@ -37,12 +37,12 @@ import json
 from pathlib import Path
 
 from ..errors import FmuInputError, RecordingError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_bytes, atomic_write_text
 from ..fmu import simulate_model
 from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
 from .metrics import ValidationError, summarize, validate_cases
-from .plots import plot_overlay, plot_residual
+from .plots import overlay_png, residual_png
 from .residuals import cases_from_recordings
 
 
@@ -118,7 +118,7 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
 
 
 def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None, progress=None,
-                   flux_of=flux_linkage) -> dict:
+                   flux_of=flux_linkage, images: dict | None = None) -> dict:
     """:func:`validate` with the real-time model run in this process on ``tables`` instead of an FMU.
 
     The FMU runs the same model on the same maps (:func:`solenoid_fmu.fmu.simulate_model`, whose agreement
@@ -132,15 +132,18 @@ def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None
     label : str
         What the result's ``"fmu"`` names (the FMU built from ``tables``).
     report_dir, progress, flux_of : see :func:`validate`
+    images : dict, optional
+        Receives the figures written to ``report_dir``, ``{str(path): PNG bytes}`` (a report embeds them from
+        memory).
     """
     def cases_of(rec):
         return cases_from_recordings(None, [rec], progress=progress, flux_of=flux_of,
                                      simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
 
-    return _validate(label, recordings, cases_of, report_dir)
+    return _validate(label, recordings, cases_of, report_dir, images)
 
 
-def _validate(label: str, recordings, cases_of, report_dir) -> dict:
+def _validate(label: str, recordings, cases_of, report_dir, images: dict | None = None) -> dict:
     """The validation of :func:`validate` and :func:`validate_model`; ``cases_of(rec)`` simulates one."""
     recordings = list(recordings)
     if not recordings:
@@ -165,10 +168,12 @@ def _validate(label: str, recordings, cases_of, report_dir) -> dict:
         entry["file"] = name
         entry["figures"] = {}
         if out_dir is not None:
-            ov = plot_overlay(case, out_dir / f"{stem}_overlay.png")
-            rs = plot_residual(case, out_dir / f"{stem}_residual.png")
-            entry["figures"] = {"overlay": str(ov), "residual": str(rs)}
-            figures += [str(ov), str(rs)]
+            for key, png in (("overlay", overlay_png(case)), ("residual", residual_png(case))):
+                written = str(atomic_write_bytes(out_dir / f"{stem}_{key}.png", png))
+                entry["figures"][key] = written
+                figures.append(written)
+                if images is not None:
+                    images[written] = png
         entries.append(entry)
     result = {"fmu": label, "recordings": entries, "summary": summarize(entries), "figures": figures}
     if out_dir is not None:
