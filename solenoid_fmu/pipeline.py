@@ -9,8 +9,8 @@
    ``material/material.csv`` (+ ``.bh``, ``.tab``) and ``identify/`` (figures, JSON);
 3. **maps**: FEM sweep with the identified steel -> ``maps/`` (:func:`solenoid_fmu.maps.build_maps`); the
    sweep's currents reach ``1.25 x`` the coil's rated current or ``1.25 x`` the largest |current| in the
-   campaign's recordings, whichever is larger (:func:`maps_current_grid`), so the maps' flux range covers
-   what was measured;
+   campaign's recordings, whichever is larger (:func:`solenoid_fmu.maps.maps_current_grid`), so the maps'
+   flux range covers what was measured;
 4. **eddy**: the single eddy conductance from the ``eddy`` recordings, stored in ``maps/maps.json``;
 5. **export**: ``NAME.fmu`` (pythonfmu) and, when a C compiler is there, ``NAME-native.fmu``;
 6. **validate** and **diagnose** the FMU on every recording;
@@ -43,13 +43,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 from .argtypes import process_count
 from .errors import SolenoidError
@@ -59,12 +56,10 @@ from .fmu import build_fmu
 from .identification import identify_from_recordings
 from .loop import effects_summary_lines, heating_corrected, improve
 from .maps import (
-    DEFAULT_CURRENT_FACTOR,
-    DEFAULT_NI,
     InlineExecutor,
     build_maps,
-    default_currents,
     default_positions,
+    maps_current_grid,
     name_problem,
     process_pool,
     save_maps,
@@ -86,8 +81,6 @@ PRESETS = {
 }
 
 
-#: The maps sweep reaches at least this multiple of the largest |current| [A] in the campaign's recordings.
-CAMPAIGN_CURRENT_MARGIN = 1.25
 #: Kinds of recording whose voltage the second round corrects for the fitted heating: those the identification
 #: reads the flux or the coil's heating rate from (flux points, eddy split, heating rate: a ramp's hold pins it).
 HEATING_CORRECTED_KINDS = ("flux", "ramp", "eddy")
@@ -119,34 +112,6 @@ def _progress(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None) -> np.ndarray:
-    """Currents [A] of the maps sweep, from 0 to the larger of ``DEFAULT_CURRENT_FACTOR`` (1.25) x the coil's
-    rated current and ``CAMPAIGN_CURRENT_MARGIN`` (1.25) x the largest |current| in ``recordings``.
-
-    The spacing is :func:`solenoid_fmu.maps.default_currents`'s (denser at low currents). When the
-    campaign pushes the top up, the number of currents grows with ``top^(2/3)`` so the first step (near the
-    iron's knee) stays as fine as with ``n_i`` currents up to the rated top (within 0.2 %: a top pushed up by
-    measurement noise adds no current).
-
-    Parameters
-    ----------
-    rated_current_A : float
-        The coil's rated current ``geometry.coil.max_current_A`` [A].
-    recordings : iterable of Recording
-        The campaign; their ``current_A`` columns (non-finite samples ignored).
-    n_i : int, optional
-        Number of currents up to the rated top (default ``maps.DEFAULT_NI``).
-    """
-    n_i = DEFAULT_NI if n_i is None else int(n_i)
-    rated_top = DEFAULT_CURRENT_FACTOR * rated_current_A
-    peaks = [float(np.max(np.abs(c[np.isfinite(c)]), initial=0.0))
-             for c in (np.asarray(r.current_A, dtype=float) for r in recordings)]
-    top = max([rated_top] + [CAMPAIGN_CURRENT_MARGIN * p for p in peaks])
-    if top > rated_top:
-        n_i = math.ceil((n_i - 1) * (top / rated_top) ** (2 / 3) - 0.01) + 1  # 0.01: no extra point for noise
-    return default_currents(top, n_i)
-
-
 def _maps_grid(preset: dict, geometry, recordings=()):
     """Positions [m] and currents [A] of the maps sweep for a preset and campaign (None: the maps' defaults)."""
     x = None
@@ -165,7 +130,8 @@ def campaign_maps(geometry, curve, recordings, eddy_recordings=None, *, preset: 
     curve : BHCurve
         The identified steel.
     recordings : list of Recording
-        The campaign (the sweep's current range covers their largest |current|, :func:`maps_current_grid`).
+        The campaign (the sweep's current range covers their largest |current|,
+        :func:`solenoid_fmu.maps.maps_current_grid`).
     eddy_recordings : list of Recording, optional
         Where G_eddy is fitted from (default: the ``eddy`` recordings among ``recordings``; the pipeline's
         second round passes the heating-corrected ones).

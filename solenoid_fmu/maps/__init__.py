@@ -24,17 +24,20 @@ from .interpolate import force_at, force_psi_at, i_f_at, psi_at
 from .invert import invert_maps, round_trip_error
 from .io import encode_maps, load_maps, maps_tables, name_problem, save_maps
 from .sweep import (
+    CAMPAIGN_CURRENT_MARGIN,
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
     InlineExecutor,
     build_maps,
     default_currents,
     default_positions,
+    maps_current_grid,
     process_pool,
 )
 from .tables import CharacteristicMaps
 
 __all__ = [
+    "CAMPAIGN_CURRENT_MARGIN",
     "CharacteristicMaps",
     "CycleEnergy",
     "DEFAULT_CURRENT_FACTOR",
@@ -54,6 +57,7 @@ __all__ = [
     "i_f_at",
     "invert_maps",
     "load_maps",
+    "maps_current_grid",
     "maps_tables",
     "name_problem",
     "process_pool",

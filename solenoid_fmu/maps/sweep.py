@@ -166,6 +166,38 @@ def default_currents(i_top_A: float, n: int = DEFAULT_NI, power: float = 1.5) ->
     return i_top_A * (np.arange(n) / (n - 1)) ** power
 
 
+#: The maps sweep of a campaign reaches at least this multiple of the largest |current| [A] in its recordings.
+CAMPAIGN_CURRENT_MARGIN = 1.25
+
+
+def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None) -> np.ndarray:
+    """Currents [A] of the maps sweep, from 0 to the larger of ``DEFAULT_CURRENT_FACTOR`` (1.25) x the coil's
+    rated current and ``CAMPAIGN_CURRENT_MARGIN`` (1.25) x the largest |current| in ``recordings``.
+
+    The spacing is :func:`default_currents`'s (denser at low currents). When the
+    campaign pushes the top up, the number of currents grows with ``top^(2/3)`` so the first step (near the
+    iron's knee) stays as fine as with ``n_i`` currents up to the rated top (within 0.2 %: a top pushed up by
+    measurement noise adds no current).
+
+    Parameters
+    ----------
+    rated_current_A : float
+        The coil's rated current ``geometry.coil.max_current_A`` [A].
+    recordings : iterable of Recording
+        The campaign; their ``current_A`` columns (non-finite samples ignored).
+    n_i : int, optional
+        Number of currents up to the rated top (default :data:`DEFAULT_NI`).
+    """
+    n_i = DEFAULT_NI if n_i is None else int(n_i)
+    rated_top = DEFAULT_CURRENT_FACTOR * rated_current_A
+    peaks = [float(np.max(np.abs(c[np.isfinite(c)]), initial=0.0))
+             for c in (np.asarray(r.current_A, dtype=float) for r in recordings)]
+    top = max([rated_top] + [CAMPAIGN_CURRENT_MARGIN * p for p in peaks])
+    if top > rated_top:
+        n_i = math.ceil((n_i - 1) * (top / rated_top) ** (2 / 3) - 0.01) + 1  # 0.01: no extra point for noise
+    return default_currents(top, n_i)
+
+
 def build_maps(
     geometry,
     material,
