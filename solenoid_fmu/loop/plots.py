@@ -1,13 +1,12 @@
-"""Validation figures: measured and simulated signals, and their residual, of one residual case (PNG)."""
+"""Validation figures: measured and simulated signals, and their residual, of one residual case (PNG bytes;
+:func:`solenoid_fmu.loop.validate` writes them and keeps them for the report)."""
 
 from __future__ import annotations
 
 import io
-from pathlib import Path
 
 import numpy as np
 
-from ..fileio import atomic_write_bytes
 from .metrics import SIGNAL_LABELS, fmt, ordered_signals, signal_metrics
 
 
@@ -48,34 +47,15 @@ def _png(fig) -> bytes:
 
 
 def overlay_png(case) -> bytes:
-    """:func:`plot_overlay`'s PNG, in memory."""
+    """Measured and simulated signals of one case in stacked axes against time [s], as PNG bytes.
+
+    Parameters
+    ----------
+    case : solenoid_fmu.loop.residuals.ResidualCase
+    """
     return _png(_stacked(case, f"{case.name}: measured vs simulated", residual=False))
 
 
 def residual_png(case) -> bytes:
-    """:func:`plot_residual`'s PNG, in memory."""
+    """Residual (measured - simulated) per signal of one case against time [s], as PNG bytes (same parameters)."""
     return _png(_stacked(case, f"{case.name}: residual (measured - simulated)", residual=True))
-
-
-def plot_overlay(case, path) -> Path:
-    """Measured and simulated signals of one case in stacked axes against time [s], to a PNG.
-
-    Parameters
-    ----------
-    case : solenoid_fmu.loop.residuals.ResidualCase
-    path : path-like
-        PNG file to write (atomically).
-    """
-    return atomic_write_bytes(Path(path), overlay_png(case))
-
-
-def plot_residual(case, path) -> Path:
-    """Residual (measured - simulated) per signal of one case against time [s], to a PNG.
-
-    Parameters
-    ----------
-    case : solenoid_fmu.loop.residuals.ResidualCase
-    path : path-like
-        PNG file to write (atomically).
-    """
-    return atomic_write_bytes(Path(path), residual_png(case))
