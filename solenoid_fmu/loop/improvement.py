@@ -475,7 +475,7 @@ class ImproveResult:
 
 def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
             min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None,
-            before_report_dir=None) -> ImproveResult:
+            before_report_dir=None, source: str | None = None) -> ImproveResult:
     """Add the effects the residual asks for; report before and after; build the improved FMU if asked.
 
     Everything runs in memory: the model is simulated in this process (:func:`validate_model`; the FMU
@@ -492,6 +492,9 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
         Validation figures of the improved model and ``improve.json``.
     before_report_dir : path-like, optional
         Validation figures of the model before improvement.
+    source : str, optional
+        How the result names the model improved (``ImproveResult.source``, ``improve.json`` ``"fmu"``);
+        default the FMU's path, or the maps' name (the pipeline: the FMU it built from them).
 
     Returns
     -------
@@ -505,9 +508,9 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     if not recs:
         raise ImproveError("improve needs at least one recording")
     if isinstance(model, CharacteristicMaps):
-        maps, source = model, model.name
+        maps, source = model, source or model.name
     else:
-        maps, source = maps_from_fmu(model), str(model)
+        maps, source = maps_from_fmu(model), source or str(model)
     try:
         tables = maps_tables(maps, where=source)
     except MapsError as exc:
