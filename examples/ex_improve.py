@@ -18,12 +18,12 @@ def run(fmu, recordings, out_fmu) -> dict:
     """``effects_added``, ``improved_fmu`` and, per signal, the summed RMS error ``before``/``after``."""
     res = sf.improve(fmu, recordings, out_fmu)
     totals: dict = {}
-    for rec in res["recordings"]:
+    for rec in res.recordings:
         for signal, e in rec["signals"].items():
             t = totals.setdefault(signal, {"before": 0.0, "after": 0.0})
             t["before"] += e["before"]
             t["after"] += e["after"]
-    return {"effects_added": res["effects_added"], "improved_fmu": res["improved_fmu"], "totals": totals}
+    return {"effects_added": res.effects_added, "improved_fmu": str(res.improved_fmu), "totals": totals}
 
 
 if __name__ == "__main__":

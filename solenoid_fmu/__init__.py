@@ -8,7 +8,7 @@ tool chain. The subpackages follow the data flow (README "Package map"):
 realtime -> field, measure -> identification, maps -> fmu, rig -> loop -> report -> pipeline -> cli.
 """
 
-__version__ = "0.1.0"
+from ._version import __version__ as __version__  # the one version, re-exported
 
 #: The public names (see :mod:`solenoid_fmu.api`); a test checks that this list equals ``api.__all__``.
 __all__ = ["solve", "build_maps", "save_maps", "load_maps", "psi_at", "force_at", "i_f_at", "force_psi_at",

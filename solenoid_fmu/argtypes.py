@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["integer", "number"]
+__all__ = ["integer", "number", "process_count"]
 
 
 def integer(lo: int | None = None, hi: int | None = None):
@@ -25,6 +25,11 @@ def integer(lo: int | None = None, hi: int | None = None):
         return n
 
     return parse
+
+
+def process_count(text: str) -> int:
+    """The argparse type of every ``--workers`` option: a number of processes, a whole number >= 1."""
+    return integer(1)(text)
 
 
 def number(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False):

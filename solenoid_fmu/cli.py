@@ -12,7 +12,7 @@ import argparse
 import importlib
 import sys
 
-from . import __version__
+from ._version import __version__
 from .errors import SolenoidError
 
 #: Where each group of subcommands is registered (``module:function``, the function takes the

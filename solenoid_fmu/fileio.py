@@ -74,6 +74,17 @@ def write_failure(path, exc: OSError) -> OutputError:
     return OutputError(f"{path}: cannot write: {reason}; an earlier file of that name is unchanged")
 
 
+def _make_directory(directory: Path, target: Path, label: str) -> None:
+    """Create ``directory`` (and its parents) to write ``target`` there; a failure is an :class:`OutputError`
+    that starts with ``label`` (a parent that is a file) or names ``target`` (:func:`write_failure`)."""
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OutputError(f"{label}: cannot write there, a parent path is a file, not a directory") from None
+    except OSError as exc:
+        raise write_failure(target, exc) from None
+
+
 @contextmanager
 def dir_lock(directory, what: str = "-o") -> Iterator[Path]:
     """Hold an exclusive lock on ``directory`` (created) while writing it: another process (or a second
@@ -81,12 +92,7 @@ def dir_lock(directory, what: str = "-o") -> Iterator[Path]:
     mixing their files. The lock is ``flock`` on the folder itself (no file is added); the kernel releases
     it when the holder exits, also on ``kill -9``. Re-entrant within one process."""
     directory = Path(directory)
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OutputError(f"{what} {directory}: cannot write there, a parent path is a file, not a directory") from None
-    except OSError as exc:
-        raise write_failure(directory, exc) from None
+    _make_directory(directory, directory, f"{what} {directory}")
     key = resolved(directory)
     with _HELD_GUARD:
         held = _HELD.get(key)
@@ -168,12 +174,7 @@ def temp_beside(path: str | Path, suffix: str = ".tmp") -> Iterator[Path]:
     directory = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
         raise OutputError(f"{path}: is a directory; give a file name to write")
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OutputError(f"{path}: cannot write there, a parent path is a file, not a directory") from None
-    except OSError as exc:
-        raise write_failure(path, exc) from None
+    _make_directory(directory, path, str(path))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=directory)
     except OSError as exc:  # a read-only folder: name the file to write, not the hidden temporary one
@@ -213,6 +214,23 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
         fh.flush()
         os.fsync(fh.fileno())
     return Path(path)
+
+
+def write_files(folder, files: dict, what: str) -> None:
+    """Write ``files`` (``{relative path: bytes}``) under ``folder``, creating sub-folders.
+
+    Raises ``ValueError("{what} {rel!r} leaves {folder name}")`` before writing a path that would leave
+    ``folder`` (``..``, an absolute path, a link out), so that data from elsewhere (a lot's worker, a client)
+    cannot write beside it.
+    """
+    folder = Path(folder)
+    root = folder.resolve()
+    for rel, data in files.items():
+        dest = folder / rel
+        if not dest.resolve().is_relative_to(root):
+            raise ValueError(f"{what} {rel!r} leaves the folder {folder.name}")
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_bytes(data)
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:

@@ -19,7 +19,7 @@ PKG = Path(__file__).resolve().parents[1] / "solenoid_fmu"
 
 #: Layer of each unit, lowest first: the data flow of the README's package map.
 LAYERS = {
-    "errors": 0, "argtypes": 0,
+    "errors": 0, "argtypes": 0, "_version": 0,
     "fileio": 1, "realtime": 1,
     "field": 2, "measure": 2,
     "identification": 3, "maps": 3,
@@ -221,19 +221,33 @@ def test_module_size(f):
     assert n <= MAX_LINES, f"{_where(f)} has {n} lines (> {MAX_LINES}): split it by job"
 
 
+def from_root(imports) -> list[str]:
+    """Imports from the package root (``from .. import x``, ``import solenoid_fmu``) by any module but the root:
+    the root re-exports the units, so such an import runs back up the layers (``__version__`` is in the leaf
+    module ``_version``)."""
+    return [f"{_where(f)}: imports {', '.join(names) or target} from the package root"
+            for module, f, target, names, _top in imports if target == "solenoid_fmu" and module != "solenoid_fmu"]
+
+
+def test_no_import_from_the_package_root():
+    bad = from_root(IMPORTS)
+    assert not bad, "\n".join(bad)
+
+
 def test_the_rules_catch_a_bad_module(tmp_path):
     """The checks are live: an upward import, an inner module, a private name and a nested import are found."""
     f = tmp_path / "probe.py"
-    f.write_text("from ..loop import improve\nfrom ..maps.io import _read\n\n"
+    f.write_text("from ..loop import improve\nfrom ..maps.io import _read\nfrom .. import __version__\n\n"
                  "def f():\n    from ..rig import run_campaign\n", encoding="utf-8")
     imports = _imports({"solenoid_fmu.field.probe": f})
     assert [(t, n, top) for _m, _f, t, n, top in imports] == [
         ("solenoid_fmu.loop", ["improve"], True), ("solenoid_fmu.maps.io", ["_read"], True),
-        ("solenoid_fmu.rig", ["run_campaign"], False)]
+        ("solenoid_fmu", ["__version__"], True), ("solenoid_fmu.rig", ["run_campaign"], False)]
     assert len(upward(imports)) == 3
     assert "probe.py: imports solenoid_fmu.maps.io, not the facade solenoid_fmu.maps" in past_facade(imports)
     assert private(imports) == ["probe.py: imports _read from solenoid_fmu.maps.io"]
     assert nested(imports) == ["probe.py: imports solenoid_fmu.rig inside a function or class"]
+    assert from_root(imports) == ["probe.py: imports __version__ from the package root"]
 
 
 def _long_functions(f: Path, limit: int) -> list[str]:

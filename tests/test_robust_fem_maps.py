@@ -16,10 +16,19 @@ from solenoid_fmu.field import fem
 from solenoid_fmu.field.geometry import load_geometry
 from solenoid_fmu.field.linear_solver import BACKENDS as LINEAR_BACKENDS
 from solenoid_fmu.field.material import load_material
-from solenoid_fmu.maps import InlineExecutor, build_maps, default_currents, fit_eddy, i_f_at, load_maps
+from solenoid_fmu.maps import (
+    CAMPAIGN_CURRENT_MARGIN,
+    InlineExecutor,
+    build_maps,
+    default_currents,
+    fit_eddy,
+    i_f_at,
+    load_maps,
+    maps_current_grid,
+)
 from solenoid_fmu.maps.interpolate import FLUX_EXTRAPOLATION_LIMIT
 from solenoid_fmu.measure import make_recording
-from solenoid_fmu.pipeline import CAMPAIGN_CURRENT_MARGIN, PRESETS, _maps_grid, maps_current_grid
+from solenoid_fmu.pipeline import PRESETS, _maps_grid
 
 X_M, I_A, I_PREV_A = 2.787e-3, 0.632, 0.6
 

@@ -1,6 +1,7 @@
 """FMI 2.0 (native also FMI 3.0) FMU of the real-time solenoid model: :func:`build_fmu` (CLI ``solenoid-fmu export``).
 
-``build_fmu(maps_dir, dest_fmu)`` reads the maps, has a backend (:data:`BACKENDS`) write the FMU,
+``build_fmu(maps, dest_fmu)`` takes the maps (a directory, or :class:`~solenoid_fmu.maps.CharacteristicMaps`
+in memory), has a backend (:data:`BACKENDS`) write the FMU,
 completes its ``modelDescription.xml`` and documentation from the interface table
 (:mod:`solenoid_fmu.fmu.model_description`) and checks every FMU built with
 ``fmpy.validation.validate_fmu``, refusing it if that reports anything.
@@ -27,20 +28,21 @@ from pathlib import Path
 
 from ..errors import FmuBuildError, MapsError
 from ..fileio import WRITE_ERRNOS, check_output_name, umask, write_failure
-from ..maps import load_maps
-from ..realtime import MapTables, ModelMapsError, load_tables
+from ..maps import CharacteristicMaps, encode_maps, load_maps, maps_tables
+from ..realtime import MAPS_JSON, MAPS_NPZ, MapTables, ModelMapsError, load_tables
 from .model_description import BackendDescription, finalize_model_description
 from .model_description3 import to_fmi3
 from .native import NATIVE_CS_DESCRIPTION, NATIVE_DESCRIPTION, build_c_fmu
 from .python_backend import PYTHON_DESCRIPTION, build_python_fmu
 
-__all__ = ["BACKENDS", "Backend", "build_fmu", "load_maps_tables"]
+__all__ = ["BACKENDS", "Backend", "build_fmu", "load_maps_tables", "maps_payload"]
 
 
 @dataclass(frozen=True)
 class Backend:
-    """An export backend: ``build(maps_dir, dest_fmu, tables) -> generationTool`` writes an FMU with the
-    interface variables; ``descriptions`` maps each interface it offers (the first is the default) to what
+    """An export backend: ``build(maps_files, dest_fmu, tables) -> generationTool`` writes an FMU with the
+    interface variables (``maps_files``: ``{"maps.npz": bytes, "maps.json": bytes}``, packed as they are);
+    ``descriptions`` maps each interface it offers (the first is the default) to what
     :func:`~solenoid_fmu.fmu.model_description.finalize_model_description` adds for it."""
 
     build: Callable
@@ -83,14 +85,35 @@ def load_maps_tables(maps_dir) -> MapTables:
         raise MapsError(str(exc)) from None
 
 
-def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | None = None,
+def maps_payload(maps) -> tuple[dict, MapTables, str]:
+    """What an FMU packs of ``maps``: the files' bytes by name, the model's tables and the maps' name.
+
+    ``maps`` is a maps directory (read once, checked as :func:`load_maps_tables` does) or
+    :class:`~solenoid_fmu.maps.CharacteristicMaps` (encoded in memory as :func:`solenoid_fmu.maps.save_maps`
+    would write them; nothing is written or read).
+    """
+    if isinstance(maps, CharacteristicMaps):
+        npz, sidecar = encode_maps(maps)
+        tables = maps_tables(maps)
+        return {MAPS_NPZ: npz, MAPS_JSON: sidecar}, tables, str(tables.meta.get("name") or "maps")
+    maps_dir = Path(maps)
+    tables = load_maps_tables(maps_dir)
+    try:
+        files = {name: (maps_dir / name).read_bytes() for name in (MAPS_NPZ, MAPS_JSON)}
+    except OSError as exc:
+        raise MapsError(f"{maps_dir}: cannot be read: {exc.strerror}") from None
+    return files, tables, str(tables.meta.get("name") or maps_dir.name)
+
+
+def build_fmu(maps, dest_fmu, *, backend: str = "python", interface: str | None = None,
               model_name: str | None = None, validate: bool = True, fmi_version: int = 2) -> Path:
     """Export the real-time model with the given maps as an FMI 2.0 (or, native, FMI 3.0) FMU.
 
     Parameters
     ----------
-    maps_dir : str or path-like
-        Maps directory (``maps.npz`` + ``maps.json``, shared format).
+    maps : str, path-like or CharacteristicMaps
+        Maps directory (``maps.npz`` + ``maps.json``, shared format), or the maps in memory
+        (:func:`maps_payload`).
     dest_fmu : str or path-like
         FMU file to write (parent directories are created; an existing file is replaced).
     backend : str
@@ -121,7 +144,6 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
     FmuBuildError
         Unknown backend or interface, exporter failure, or validation problems (all listed).
     """
-    maps_dir = Path(maps_dir)
     dest = check_output_name(dest_fmu)
     if backend not in BACKENDS:
         raise FmuBuildError(f"unknown FMU backend {backend!r}; available: {', '.join(BACKENDS)}")
@@ -136,7 +158,7 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
                             f"not {fmi_version!r}" + ("; export --backend c for FMI 3" if backend != "c" else ""))
     if dest.suffix.lower() != ".fmu":
         raise FmuBuildError(f"{dest}: the output file must end in .fmu")
-    tables = load_maps_tables(maps_dir)
+    files, tables, maps_name = maps_payload(maps)
     try:
         dest.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=".fmu", dir=dest.parent)
@@ -147,8 +169,8 @@ def build_fmu(maps_dir, dest_fmu, *, backend: str = "python", interface: str | N
     os.close(fd)
     tmp = Path(tmp_name)
     try:
-        tool = spec.build(maps_dir, tmp, tables, **({"fmi_version": 3} if fmi_version == 3 else {}))
-        finalize_model_description(tmp, tables=tables, maps_dir=maps_dir, generation_tool=tool,
+        tool = spec.build(files, tmp, tables, **({"fmi_version": 3} if fmi_version == 3 else {}))
+        finalize_model_description(tmp, tables=tables, maps_files=files, maps_name=maps_name, generation_tool=tool,
                                    model_name=model_name, backend=description)
         if fmi_version == 3:
             to_fmi3(tmp, tables)

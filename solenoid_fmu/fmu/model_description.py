@@ -25,7 +25,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from .. import __version__
+from .._version import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables
 from .interface import (
@@ -110,7 +110,7 @@ def rewrite_fmu(fmu_path, replace: dict) -> None:
             os.unlink(tmp_name)
 
 
-def finalize_model_description(fmu_path, *, tables: MapTables, maps_dir, generation_tool: str,
+def finalize_model_description(fmu_path, *, tables: MapTables, maps_files: dict, maps_name: str, generation_tool: str,
                                model_name: str | None = None, backend: BackendDescription | None = None) -> None:
     """Rewrite ``modelDescription.xml`` inside ``fmu_path`` (in place) for strict importers.
 
@@ -120,8 +120,11 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_dir, generat
         FMU whose variables follow :func:`~solenoid_fmu.fmu.interface.interface_for` (any backend).
     tables : solenoid_fmu.realtime.MapTables
         The maps packed into the FMU (their ranges and sidecar go into the description).
-    maps_dir : path-like
-        The maps directory (file hashes for the provenance).
+    maps_files : dict
+        The maps' files packed into the FMU, ``{"maps.npz": bytes, "maps.json": bytes}`` (their hashes go
+        into the provenance).
+    maps_name : str
+        The maps' name when their sidecar has none.
     generation_tool : str
         ``generationTool`` attribute.
     model_name : str, optional
@@ -141,18 +144,17 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_dir, generat
     """
     backend = backend or BackendDescription()
     fmu_path = Path(fmu_path)
-    maps_dir = Path(maps_dir)
     with zipfile.ZipFile(fmu_path) as zf:
         md_bytes = zf.read("modelDescription.xml") if "modelDescription.xml" in zf.namelist() else None
     if md_bytes is None:
         raise FmuBuildError(f"{fmu_path}: no modelDescription.xml in the FMU")
     root = etree.fromstring(md_bytes, etree.XMLParser(remove_blank_text=True))
     meta = tables.meta
-    maps_name = str(meta.get("name") or maps_dir.name)
+    maps_name = str(meta.get("name") or maps_name)
     prov = meta.get("provenance") or {}
     geo = prov.get("geometry") or {}
-    sha_npz = _sha256(maps_dir / "maps.npz")
-    sha_json = _sha256(maps_dir / "maps.json")
+    sha_npz = hashlib.sha256(maps_files["maps.npz"]).hexdigest()
+    sha_json = hashlib.sha256(maps_files["maps.json"]).hexdigest()
     now = datetime.datetime.now(datetime.UTC).replace(microsecond=0)
 
     # -- root attributes --------------------------------------------------------------------

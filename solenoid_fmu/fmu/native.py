@@ -64,7 +64,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from .. import __version__
+from .._version import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables
 from .c_sources import default_params, generate_sources
@@ -246,8 +246,9 @@ def _raw_model_description(guid: str, params: dict, tables: MapTables) -> bytes:
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
 
 
-def build_c_fmu(maps_dir, dest, tables: MapTables, *, fmi_version: int = 2) -> str:
-    """Generate, compile and pack the native FMU into ``dest`` (description not yet final).
+def build_c_fmu(maps_files: dict, dest, tables: MapTables, *, fmi_version: int = 2) -> str:
+    """Generate, compile and pack the native FMU into ``dest`` (description not yet final), with the maps'
+    files ``maps_files`` (``{"maps.npz": bytes, "maps.json": bytes}``) under ``resources/``.
 
     Binaries: the machine's platform (:func:`host_target`, with :func:`find_compiler`) and every
     :data:`CROSS_TARGETS` platform whose cross compiler is installed (:func:`skipped_platforms` names
@@ -258,7 +259,6 @@ def build_c_fmu(maps_dir, dest, tables: MapTables, *, fmi_version: int = 2) -> s
     :func:`solenoid_fmu.fmu.build_fmu` then runs
     :func:`solenoid_fmu.fmu.model_description.finalize_model_description`.
     """
-    maps_dir = Path(maps_dir)
     params = default_params(tables)
     with tempfile.TemporaryDirectory(prefix="solenoid_fmu_c_") as tmp:
         tmp = Path(tmp)
@@ -275,8 +275,8 @@ def build_c_fmu(maps_dir, dest, tables: MapTables, *, fmi_version: int = 2) -> s
                 zf.write(lib, lib.relative_to(tmp).as_posix())
             for p in sorted(src.iterdir()):
                 zf.write(p, f"sources/{p.name}")
-            for name in ("maps.npz", "maps.json"):
-                zf.write(maps_dir / name, f"resources/{name}")
+            for name, data in maps_files.items():
+                zf.writestr(f"resources/{name}", data)
     return generation_tool(compiled)
 
 

@@ -24,7 +24,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .. import __version__
+from .._version import __version__
 from ..errors import FmuBuildError
 from ..realtime import MapTables, model_source_files
 from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES
@@ -79,12 +79,13 @@ def _source_hash() -> str:
     return h.hexdigest()[:12]
 
 
-def build_python_fmu(maps_dir, dest, tables: MapTables) -> str:
-    """Write the pythonfmu FMU (modelDescription not yet final) to ``dest``; returns generationTool."""
+def build_python_fmu(maps_files: dict, dest, tables: MapTables) -> str:
+    """Write the pythonfmu FMU (modelDescription not yet final) to ``dest``; returns generationTool.
+
+    ``maps_files``: ``{"maps.npz": bytes, "maps.json": bytes}`` (:func:`solenoid_fmu.fmu.export.maps_payload`)."""
     import pythonfmu  # third-party and slow to import: only when this backend builds
     from pythonfmu import FmuBuilder
 
-    maps_dir = Path(maps_dir)
     tag = _source_hash()
     model_module = f"solenoid_model_{tag}"
     slave_module = f"solenoid_slave_{tag}"
@@ -99,8 +100,8 @@ def build_python_fmu(maps_dir, dest, tables: MapTables) -> str:
         for f in model_source_files():
             shutil.copyfile(f, package / f.name)
         project = [package]
-        for name in ("maps.npz", "maps.json"):
-            shutil.copyfile(maps_dir / name, src / name)
+        for name, data in maps_files.items():
+            (src / name).write_bytes(data)
             project.append(src / name)
         out = tmp / "out"
         out.mkdir()
@@ -113,7 +114,7 @@ def build_python_fmu(maps_dir, dest, tables: MapTables) -> str:
                                          canInterpolateInputs="false",
                                          canBeInstantiatedOnlyOncePerProcess="false")
         except Exception as exc:  # pythonfmu reports build problems with bare exceptions
-            raise FmuBuildError(f"pythonfmu could not build the FMU from {maps_dir}: "
+            raise FmuBuildError(f"pythonfmu could not build the FMU of the maps {tables.where}: "
                                 f"{type(exc).__name__}: {exc}") from exc
         finally:
             sys.path[:] = path_before

@@ -3,16 +3,17 @@
 from .diagnosis import Diagnosis, diagnose
 from .effects import heating_corrected
 from .identifiability import not_identifiable
-from .improvement import Improvement, effects_summary_lines, improve, improve_tables
+from .improvement import Improvement, ImproveResult, effects_summary_lines, improve, improve_tables
 from .metrics import ValidationError, signal_metrics, validate_cases
 from .residuals import ResidualCase, cases_from_recordings
 from .split import split_recordings
-from .tables import ImproveError, tables_from_fmu, with_effects
-from .validation import validate
+from .tables import ImproveError, maps_from_fmu, tables_from_fmu, with_effects
+from .validation import validate, validate_model
 
 __all__ = [
     "Diagnosis",
     "ImproveError",
+    "ImproveResult",
     "Improvement",
     "ResidualCase",
     "ValidationError",
@@ -22,11 +23,13 @@ __all__ = [
     "heating_corrected",
     "improve",
     "improve_tables",
+    "maps_from_fmu",
     "not_identifiable",
     "signal_metrics",
     "split_recordings",
     "tables_from_fmu",
     "validate",
     "validate_cases",
+    "validate_model",
     "with_effects",
 ]

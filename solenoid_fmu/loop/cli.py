@@ -125,7 +125,7 @@ def _cli_improve(args) -> int:
     if args.report is not None:
         refuse_overwriting_inputs(require_directory(args.report, "--report"), [args.fmu, *args.recordings], written=[])
     res = improve(args.fmu, args.recordings, args.output, report_dir=args.report, max_effects=args.max_effects,
-                  min_gain=args.min_gain, progress=progress)
+                  min_gain=args.min_gain, progress=progress).as_dict()
     if args.json:
         out = {k: res[k] for k in ("effects_added", "steps", "recordings", "fmu", "improved_fmu", "not_identifiable")}
         print(json.dumps(jsonable(out)))

@@ -112,6 +112,14 @@ def _without_heating(recordings: list, effects: dict) -> list:
     return [heating_corrected(r, heating) for r in recordings] if heating else list(recordings)
 
 
+def _flux_series(recs: list, tables: MapTables, flux_of):
+    """Each recording of ``recs`` with its :func:`flux_data` ``(t, psi, e, i, x)``, where it has them."""
+    for rec in recs:
+        data = flux_data(rec, tables, flux_of)
+        if data is not None:
+            yield rec, data
+
+
 # -- fits ----------------------------------------------------------------------------------------
 def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[dict, dict]:
     """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note)."""
@@ -122,11 +130,7 @@ def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[d
         raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
     recs = _without_heating(recs, effects)
     bs, hs, used = [], [], []
-    for rec in recs:
-        data = flux_data(rec, tables, flux_of)
-        if data is None:
-            continue
-        t, psi, e, i, x = data
+    for rec, (t, psi, e, i, x) in _flux_series(recs, tables, flux_of):
         h = i - _i_f(tables, psi, x) - _eddy_current(tables, effects, e, t)
         step = max(1, psi.size // 3000)  # rate-independent: a decimated series keeps the loops
         bs.append(psi[::step])
@@ -168,11 +172,7 @@ def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[
         raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
     recs = _without_heating(recs, effects)
     rows, ys, used = [], [], []
-    for rec in recs:
-        data = flux_data(rec, tables, flux_of)
-        if data is None:
-            continue
-        t, psi, e, i, x = data
+    for rec, (t, psi, e, i, x) in _flux_series(recs, tables, flux_of):
         y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
         cols = [e] + [lowpass(e, t, tau) for tau in LADDER_TAUS_S]
         rows.append(np.column_stack(cols))

@@ -1,6 +1,6 @@
 """Close the loop: add the effect the diagnosis names to the real-time model, fit it, keep it if it pays.
 
-The loop (issue 7), on a campaign of recordings and an FMU built from characteristic maps:
+The loop, on a campaign of recordings and the characteristic maps of a model (or the FMU that carries them):
 
 1. simulate every recording with the current model and diagnose the residual
    (:mod:`solenoid_fmu.loop.diagnosis`);
@@ -46,13 +46,15 @@ the flux of a recording that starts energized is compared as a change from the m
 its first sample; the gate's error is the full-scale NRMSE per kind (:func:`_error`), so that no
 single recording can swing it.
 
-The maps with effects are read and written by :mod:`solenoid_fmu.loop.tables`. A kept eddy ladder
+The maps gain their effect sections in :mod:`solenoid_fmu.loop.tables` (in memory). A kept eddy ladder
 brings its own refit of the maps' single eddy conductance, which replaces the maps' value: the
 step's note (``G_eddy_S``: the maps' value and the refit) and the improved maps' ``eddy.source``
 say so (see :mod:`solenoid_fmu.loop.effects`). Each recording's eq.-4 flux is computed once per
 run (:class:`solenoid_fmu.loop.residuals.FluxCache`).
 
-The reported before/after errors come from the FMUs themselves (fmpy), per recording and signal.
+The reported before/after errors, per recording and signal, come from the model run in this process on the
+maps the FMUs carry (the FMU runs the same model; :func:`solenoid_fmu.loop.validate_model`): the improved FMU
+is an output only, nothing the run writes is read back.
 """
 
 from __future__ import annotations
@@ -65,8 +67,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import MapsError
 from ..fileio import atomic_write_text, check_output_name, jsonable
 from ..fmu import build_fmu, simulate_model
+from ..maps import CharacteristicMaps, maps_tables, save_maps
 from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_MIN_NRMS, DEFAULT_THRESHOLD, diagnose
@@ -76,8 +80,8 @@ from .identifiability import not_identifiable
 from .metrics import full_scales, nrmse_fs
 from .residuals import FluxCache, cases_from_recordings, recording_name
 from .split import split_recordings
-from .tables import ADDABLE, ImproveError, tables_from_fmu, with_effects, write_maps_dir
-from .validation import validate
+from .tables import ADDABLE, ImproveError, maps_from_fmu, with_effects, with_maps_meta
+from .validation import validate_model
 
 DEFAULT_MAX_EFFECTS = 4
 DEFAULT_MIN_GAIN = 0.10
@@ -188,51 +192,25 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     if not recordings:
         raise ImproveError("improve needs at least one recording")
     threshold = DEFAULT_THRESHOLD if threshold is None else threshold
-    try_threshold = min(threshold, TRY_THRESHOLD)
     say = progress or (lambda msg: None)
     fit_recs, val_recs = split_recordings(recordings)
-    val_names = {recording_name(r) for r in val_recs}
-    fit_names = {recording_name(r) for r in fit_recs}
+    flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
+    run = _Run(recordings, fit_recs, {recording_name(r) for r in fit_recs}, {recording_name(r) for r in val_recs},
+               flux_of, say)
     effects = dict(tables.meta.get("effects") or {})
     steps: list[Step] = []
-    diagnoses = []
+    diagnoses: list = []
     tried: set = set()
-    flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
     missing = not_identifiable(recordings, flux_of)
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
     cases = cases0 = _cases(tables, recordings, say, flux_of)
     heat = None if "heating" in effects else heating_from_resistance(recordings, tables)
     if heat is not None:
-        section, note = heat
-        say(f"heating from the resistance tracks: kappa {note['sigmas']:.1f} sigma above zero, "
-            f"C_th = {section['C_th_J_per_K']:.4g} J/K")
-        trial_fx = dict(effects, heating=section)
-        trial = with_effects(tables, trial_fx)
-        trial_cases = _cases(trial, recordings, say, flux_of)
-        before, after = _error(cases, val_names), _error(trial_cases, val_names)
-        ok = after <= (1.0 + min_gain) * before  # measured: kept unless rejected by the margin
-        steps.append(Step("heating", ok, params=section, heldout_before=before, heldout_after=after,
-                          note=json.dumps(dict(note, judged="resistance evidence; kept unless the validation error "
-                                                            "grows by min_gain or more"))))
-        say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
-        if ok:
-            effects, tables, cases = trial_fx, trial, trial_cases
-            run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
-            effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
-                                                          heating_first=True, min_fall=0.1 * min_gain)
+        effects, tables, cases = _add_measured_heating(run, heat, effects, tables, cases, steps, min_gain)
         tried.add("heating")
     while len(_kept(steps)) < max_effects:
-        d = diagnose(cases, threshold=threshold)
-        diagnoses.append(d.as_dict())
-        significant = any(v >= DEFAULT_MIN_NRMS for v in d.residual_nrms.values())
-        pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
-                     and c.effect not in tried and significant), None)
-        if pick is None and significant:  # one recording's large residual may drown the others' evidence
-            d = diagnose(cases, threshold=threshold, balanced=True)
-            diagnoses.append(dict(d.as_dict(), balanced=True))
-            pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
-                         and c.effect not in tried), None)
+        pick, d = _pick(cases, threshold, tried, diagnoses)
         if pick is None:
             say("no further effect clears the diagnosis threshold")
             break
@@ -245,46 +223,10 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         best_signal = max(cand.per_signal, key=cand.per_signal.get, default=None)
         say(f"adding {pick} (diagnosis score {cand.score:.3f}"
             + (f"; {best_signal} {cand.per_signal[best_signal]:.3f})" if best_signal else ")"))
-        try:
-            section, note, replaced = _fit_effect(pick, tables, effects, fit_recs,
-                                                  [c for c in cases if c.name in fit_names], flux_of)
-        except ImproveError as exc:
-            steps.append(Step(pick, False, note=str(exc)))
-            say(f"  not added: {exc}")
-            continue
-        trial_fx = dict(effects, **{ADDABLE[pick]: section})
-        trial = with_effects(tables, trial_fx, **replaced)
-        trial_cases = _cases(trial, recordings, say, flux_of)
-        before, after = _error(cases, val_names), _error(trial_cases, val_names)
-        ok = after < (1.0 - min_gain) * before
-        if not ok and pick in FEW_PARAMETERS:
-            # a one- or two-parameter effect whose evidence sits in a few recordings: one fold may be
-            # too weak to estimate it. Fitted on all recordings, it must cut the error over all of them
-            # by min_gain, and the fit-part estimate must not make the validation recordings worse.
-            try:
-                section_all, note_all, replaced_all = _fit_effect(pick, tables, effects, recordings, cases, flux_of)
-            except ImproveError:
-                section_all = None
-            if section_all is not None:
-                all_names = val_names | fit_names
-                trial_all_fx = dict(effects, **{ADDABLE[pick]: section_all})
-                trial_all = with_effects(tables, trial_all_fx, **replaced_all)
-                cases_all = _cases(trial_all, recordings, say, flux_of)
-                b_all, a_all = _error(cases, all_names), _error(cases_all, all_names)
-                val_ok = after <= (1.0 + 0.1 * min_gain) * before  # not worse beyond a tenth of the gain asked for
-                if a_all < (1.0 - min_gain) * b_all and val_ok:
-                    note = dict(note_all, judged=f"in-sample on all recordings (few parameters; held out "
-                                                 f"{after:.3g} vs {before:.3g}: the validation part holds too "
-                                                 "little of its evidence)")
-                    ok, before, after = True, b_all, a_all
-                    section, trial_fx, trial, trial_cases = section_all, trial_all_fx, trial_all, cases_all
-        steps.append(Step(pick, ok, params=section, heldout_before=before, heldout_after=after,
-                          note=json.dumps(note)))
-        say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
-        if ok:
-            effects, tables, cases = trial_fx, trial, trial_cases
+        kept = _try_effect(run, pick, effects, tables, cases, steps, min_gain)
+        if kept is not None:
+            (effects, tables, cases), note = kept
             if pick == "heating":
-                run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
                 effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps,
                                                               heat_on_all="judged" in note)
             # an effect rejected before may have been masked by the one just added: it may be tried again
@@ -293,10 +235,98 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
                                                       for s in steps[1:]):
         # the heating from the tracks was refitted on the flux residual before the effects fitted along the
         # flux were in: once more now that their part of the residual is modelled
-        run = _Run(recordings, fit_recs, fit_names, val_names, flux_of, say)
         effects, tables, cases = _refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
                                                       heating_first=True, min_fall=0.1 * min_gain)
     return Improvement(tables, steps, diagnoses, cases0, cases, missing)
+
+
+def _add_measured_heating(run, heat: tuple, effects: dict, tables, cases: list, steps: list, min_gain: float):
+    """Add the heating the resistance tracks measure (module docstring); the (effects, tables, cases) after."""
+    section, note = heat
+    run.say(f"heating from the resistance tracks: kappa {note['sigmas']:.1f} sigma above zero, "
+            f"C_th = {section['C_th_J_per_K']:.4g} J/K")
+    trial_fx = dict(effects, heating=section)
+    trial = with_effects(tables, trial_fx)
+    trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+    before, after = _error(cases, run.val_names), _error(trial_cases, run.val_names)
+    ok = after <= (1.0 + min_gain) * before  # measured: kept unless rejected by the margin
+    steps.append(Step("heating", ok, params=section, heldout_before=before, heldout_after=after,
+                      note=json.dumps(dict(note, judged="resistance evidence; kept unless the validation error "
+                                                        "grows by min_gain or more"))))
+    run.say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
+    if not ok:
+        return effects, tables, cases
+    return _refit_after_heating(run, trial_fx, trial, trial_cases, steps, heat_on_all=True, heating_first=True,
+                                min_fall=0.1 * min_gain)
+
+
+def _pick(cases: list, threshold: float, tried: set, diagnoses: list):
+    """The next effect to try (None: none) and the diagnosis that names it; appends the diagnoses made.
+
+    While the residual is significant, the best-ranked addable effect not yet tried whose :func:`_try_score`
+    reaches :data:`TRY_THRESHOLD` (or the diagnosis threshold if lower); if there is none, the same on the
+    balanced diagnosis (one recording's large residual may drown the others' evidence)."""
+    try_threshold = min(threshold, TRY_THRESHOLD)
+    d = diagnose(cases, threshold=threshold)
+    diagnoses.append(d.as_dict())
+    if not any(v >= DEFAULT_MIN_NRMS for v in d.residual_nrms.values()):
+        return None, d
+    pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
+                 and c.effect not in tried), None)
+    if pick is None:
+        d = diagnose(cases, threshold=threshold, balanced=True)
+        diagnoses.append(dict(d.as_dict(), balanced=True))
+        pick = next((c.effect for c in d.ranking if _try_score(c) >= try_threshold and c.effect in ADDABLE
+                     and c.effect not in tried), None)
+    return pick, d
+
+
+def _try_effect(run, pick: str, effects: dict, tables, cases: list, steps: list, min_gain: float):
+    """Fit ``pick`` and judge it (module docstring, step 3); appends its :class:`Step`. When it is kept, the
+    (effects, tables, cases) with it and the fit's note; else None."""
+    try:
+        section, note, replaced = _fit_effect(pick, tables, effects, run.fit_recs,
+                                              [c for c in cases if c.name in run.fit_names], run.flux_of)
+    except ImproveError as exc:
+        steps.append(Step(pick, False, note=str(exc)))
+        run.say(f"  not added: {exc}")
+        return None
+    trial_fx = dict(effects, **{ADDABLE[pick]: section})
+    trial = with_effects(tables, trial_fx, **replaced)
+    trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+    before, after = _error(cases, run.val_names), _error(trial_cases, run.val_names)
+    ok = after < (1.0 - min_gain) * before
+    if not ok and pick in FEW_PARAMETERS:
+        on_all = _judged_on_all(run, pick, effects, tables, cases, (before, after), min_gain)
+        if on_all is not None:
+            ok = True
+            section, note, (trial_fx, trial, trial_cases), (before, after) = on_all
+    steps.append(Step(pick, ok, params=section, heldout_before=before, heldout_after=after, note=json.dumps(note)))
+    run.say(f"  validation error {before:.3g} -> {after:.3g}: {'kept' if ok else 'rejected'}")
+    return ((trial_fx, trial, trial_cases), note) if ok else None
+
+
+def _judged_on_all(run, pick: str, effects: dict, tables, cases: list, held_out: tuple, min_gain: float):
+    """The gate of a one- or two-parameter effect whose evidence sits in a few recordings (one fold may be too
+    weak to estimate it): fitted on all recordings, it must cut the error over all of them by ``min_gain``,
+    and the fit-part estimate (``held_out``: its validation errors before, after) must not make the
+    validation recordings worse beyond a tenth of that. (section, note, trial, errors) if it passes, else None.
+    """
+    try:
+        section, note, replaced = _fit_effect(pick, tables, effects, run.recordings, cases, run.flux_of)
+    except ImproveError:
+        return None
+    before, after = held_out
+    all_names = run.val_names | run.fit_names
+    trial_fx = dict(effects, **{ADDABLE[pick]: section})
+    trial = with_effects(tables, trial_fx, **replaced)
+    trial_cases = _cases(trial, run.recordings, run.say, run.flux_of)
+    b_all, a_all = _error(cases, all_names), _error(trial_cases, all_names)
+    if not (a_all < (1.0 - min_gain) * b_all and after <= (1.0 + 0.1 * min_gain) * before):
+        return None
+    note = dict(note, judged=f"in-sample on all recordings (few parameters; held out {after:.3g} vs {before:.3g}: "
+                             "the validation part holds too little of its evidence)")
+    return section, note, (trial_fx, trial, trial_cases), (b_all, a_all)
 
 
 def _try_score(c) -> float:
@@ -386,48 +416,130 @@ def _refit_after_heating(run: _Run, effects: dict, tables, cases: list, steps: l
     return effects, tables, cases
 
 
-def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
+@dataclass(frozen=True)
+class ImproveResult:
+    """Outcome of :func:`improve`: the improved model in memory, what was tried, the errors before and after.
+
+    Attributes
+    ----------
+    maps : CharacteristicMaps
+        The improved maps (maps.json ``effects``; a kept eddy ladder's refit ``eddy``).
+    tables : MapTables
+        The same maps as the real-time model's tables.
+    steps : list of Step
+        Every effect tried, in order.
+    diagnoses : list of dict
+        The diagnosis of each round.
+    not_identifiable : dict
+        Effect -> what to add to the campaign to identify it.
+    recordings : list of dict
+        Per recording: ``file``, ``split`` and per signal the errors ``before``/``after`` (RMS, the signal's
+        unit), ``*_nrmse`` (by the recording's range), ``*_nrmse_fs`` (by the full scale per kind).
+    before, after : dict
+        The validations of the model before and after (:func:`solenoid_fmu.loop.validate_model`).
+    source : str
+        The model improved (the FMU's path, or the maps' name).
+    improved_fmu, maps_dir : pathlib.Path or None
+        The improved FMU and its maps directory (``<stem>.maps/``), when one was written.
+    images : dict
+        The validation figures written (``report_dir``, ``before_report_dir``) as ``{str(path): PNG bytes}``.
+    """
+
+    maps: CharacteristicMaps
+    tables: MapTables
+    steps: list
+    diagnoses: list
+    not_identifiable: dict
+    recordings: list
+    before: dict
+    after: dict
+    source: str
+    improved_fmu: Path | None = None
+    maps_dir: Path | None = None
+    images: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def effects_added(self) -> list:
+        """The effects kept, in the order they were added."""
+        return _kept(self.steps)
+
+    def as_dict(self) -> dict:
+        """The JSON form (``improve.json``): ``effects_added``, ``steps``, ``fmu``, ``improved_fmu``, ``maps``,
+        ``not_identifiable``, ``diagnoses``, ``recordings``, ``before``, ``after``."""
+        return {"fmu": self.source, "improved_fmu": None if self.improved_fmu is None else str(self.improved_fmu),
+                "maps": None if self.maps_dir is None else str(self.maps_dir),
+                "effects_added": self.effects_added, "steps": [s.as_dict() for s in self.steps],
+                "not_identifiable": self.not_identifiable, "diagnoses": self.diagnoses, "recordings": self.recordings,
+                "before": self.before, "after": self.after}
+
+
+def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
             min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None,
-            before_report_dir=None) -> dict:
-    """Add the effects the residual asks for; build the improved FMU; report before and after.
+            before_report_dir=None, source: str | None = None) -> ImproveResult:
+    """Add the effects the residual asks for; report before and after; build the improved FMU if asked.
+
+    Everything runs in memory: the model is simulated in this process (:func:`validate_model`; the FMU
+    runs the same model on the same maps), and the improved FMU and its maps are outputs only.
 
     Parameters
     ----------
-    fmu_path : path-like
-        The FMU to improve (solenoid-fmu export; its maps travel inside it).
+    model : path-like or CharacteristicMaps
+        The FMU to improve (solenoid-fmu export; its maps are read out of it once), or the maps.
     recordings : list of path-like or Recording
-    out_fmu : path-like
+    out_fmu : path-like, optional
         The improved FMU to write (its maps directory is written beside it, ``<stem>.maps/``).
     report_dir : path-like, optional
-        Validation figures of the improved FMU and ``improve.json``.
+        Validation figures of the improved model and ``improve.json``.
     before_report_dir : path-like, optional
-        Validation figures of the FMU before improvement.
+        Validation figures of the model before improvement.
+    source : str, optional
+        How the result names the model improved (``ImproveResult.source``, ``improve.json`` ``"fmu"``);
+        default the FMU's path, or the maps' name (the pipeline: the FMU it built from them).
 
     Returns
     -------
-    dict
-        ``{"effects_added": [...], "steps": [...], "fmu": ..., "improved_fmu": ..., "maps": ...,
-        "recordings": [{"file", "split", "signals": {signal: {"before", "after", "before_nrmse",
-        "after_nrmse", "before_nrmse_fs", "after_nrmse_fs"}}}], "before": validation dict, "after":
-        validation dict}``; before/after are RMS errors in the signal's unit from the FMUs (fmpy),
-        ``*_nrmse`` by the recording's range, ``*_nrmse_fs`` by the full scale per kind.
+    ImproveResult
+        ``as_dict()`` is the JSON form (``improve.json``).
     """
     say = progress or (lambda msg: None)
-    check_output_name(out_fmu)  # before any simulation
+    if out_fmu is not None:
+        out_fmu = check_output_name(out_fmu)  # before any simulation
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     if not recs:
         raise ImproveError("improve needs at least one recording")
-    tables = tables_from_fmu(fmu_path)
+    if isinstance(model, CharacteristicMaps):
+        maps, source = model, source or model.name
+    else:
+        maps, source = maps_from_fmu(model), source or str(model)
+    try:
+        tables = maps_tables(maps, where=source)
+    except MapsError as exc:
+        raise ImproveError(str(exc)) from None
     flux_of = FluxCache()
-    improved, steps, diagnoses, _, _, missing = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain,
-                                                               threshold=threshold, progress=say, flux_of=flux_of)
-    out_fmu = Path(out_fmu)
-    maps_dir = write_maps_dir(improved, fmu_path, out_fmu.with_suffix(".maps"))
-    say(f"building {out_fmu}")
-    build_fmu(maps_dir, out_fmu)
-    say("validating the FMU before and after")
-    before = validate(fmu_path, recs, report_dir=before_report_dir, flux_of=flux_of)
-    after = validate(out_fmu, recs, report_dir=report_dir, flux_of=flux_of)
+    found = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain, threshold=threshold,
+                           progress=say, flux_of=flux_of)
+    improved = with_maps_meta(maps, found.tables)
+    improved_tables = maps_tables(improved, where=source)
+    maps_dir = None
+    if out_fmu is not None:
+        maps_dir = save_maps(improved, out_fmu.with_suffix(".maps"))
+        say(f"building {out_fmu}")
+        build_fmu(improved, out_fmu)
+    say("validating the model before and after")
+    images: dict = {}
+    before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of, images=images)
+    after = validate_model(improved_tables, recs, label=str(out_fmu or improved.name), report_dir=report_dir,
+                           flux_of=flux_of, images=images)
+    result = ImproveResult(improved, improved_tables, found.steps, found.diagnoses, found.not_identifiable,
+                           _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir, images)
+    if report_dir is not None:
+        Path(report_dir).mkdir(parents=True, exist_ok=True)
+        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result.as_dict()), indent=1) + "\n")
+    return result
+
+
+def _error_rows(recs: list, before: dict, after: dict) -> list:
+    """Per recording (``file``, fit or validation ``split``) and signal: the errors before and after."""
     fit_recs, _ = split_recordings(recs)
     fit_names = {recording_name(r) for r in fit_recs}
     rows = []
@@ -441,14 +553,7 @@ def improve(fmu_path, recordings, out_fmu, *, report_dir=None, max_effects: int 
                          "after_nrmse": a.get("nrmse"), "before_nrmse_fs": m.get("nrmse_fs"),
                          "after_nrmse_fs": a.get("nrmse_fs")}
         rows.append({"file": rb["file"], "split": "fit" if rb["file"] in fit_names else "validate", "signals": sig})
-    result = {"fmu": str(fmu_path), "improved_fmu": str(out_fmu), "maps": str(maps_dir),
-              "effects_added": _kept(steps), "steps": [s.as_dict() for s in steps],
-              "not_identifiable": missing,
-              "diagnoses": diagnoses, "recordings": rows, "before": before, "after": after}
-    if report_dir is not None:
-        Path(report_dir).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result), indent=1) + "\n")
-    return result
+    return rows
 
 
 def effects_summary_lines(result: dict) -> list[str]:

@@ -1,13 +1,12 @@
-"""Validation figures: measured and simulated signals, and their residual, of one residual case (PNG)."""
+"""Validation figures: measured and simulated signals, and their residual, of one residual case (PNG bytes;
+:func:`solenoid_fmu.loop.validate` writes them and keeps them for the report)."""
 
 from __future__ import annotations
 
 import io
-from pathlib import Path
 
 import numpy as np
 
-from ..fileio import atomic_write_bytes
 from .metrics import SIGNAL_LABELS, fmt, ordered_signals, signal_metrics
 
 
@@ -41,31 +40,22 @@ def _stacked(case, title: str, residual: bool):
     return fig
 
 
-def _save_png(fig, path: Path) -> Path:
+def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
-    return atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
 
 
-def plot_overlay(case, path) -> Path:
-    """Measured and simulated signals of one case in stacked axes against time [s], to a PNG.
-
-    Parameters
-    ----------
-    case : solenoid_fmu.loop.residuals.ResidualCase
-    path : path-like
-        PNG file to write (atomically).
-    """
-    return _save_png(_stacked(case, f"{case.name}: measured vs simulated", residual=False), Path(path))
-
-
-def plot_residual(case, path) -> Path:
-    """Residual (measured - simulated) per signal of one case against time [s], to a PNG.
+def overlay_png(case) -> bytes:
+    """Measured and simulated signals of one case in stacked axes against time [s], as PNG bytes.
 
     Parameters
     ----------
     case : solenoid_fmu.loop.residuals.ResidualCase
-    path : path-like
-        PNG file to write (atomically).
     """
-    return _save_png(_stacked(case, f"{case.name}: residual (measured - simulated)", residual=True), Path(path))
+    return _png(_stacked(case, f"{case.name}: measured vs simulated", residual=False))
+
+
+def residual_png(case) -> bytes:
+    """Residual (measured - simulated) per signal of one case against time [s], as PNG bytes (same parameters)."""
+    return _png(_stacked(case, f"{case.name}: residual (measured - simulated)", residual=True))

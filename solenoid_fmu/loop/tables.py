@@ -1,4 +1,4 @@
-"""The model's maps with effects: read them from an FMU, add effect sections, write the improved maps.
+"""The model's maps with effects: read them from an FMU, add effect sections, the improved maps.
 
 The improved FMU carries the effects as switchable sub-models with parameters, from the
 ``effects`` section of its maps.json (:data:`ADDABLE` names the section of each effect); their
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SolenoidError
-from ..maps import load_maps, save_maps
-from ..realtime import MapTables, ModelError, load_tables
+from ..errors import MapsError, SolenoidError
+from ..maps import CharacteristicMaps, load_maps, maps_tables
+from ..realtime import MAPS_JSON, MAPS_NPZ, MapTables
 
 #: Effects ``improve`` can add, by the names ``diagnose`` uses, and their maps.json section.
 ADDABLE = {"hysteresis": "hysteresis", "eddy": "eddy_ladder", "heating": "heating", "friction": "friction"}
@@ -27,22 +27,36 @@ class ImproveError(SolenoidError):
     """The improvement loop cannot run (no recordings, an FMU without maps, ...)."""
 
 
-def tables_from_fmu(fmu_path) -> MapTables:
-    """The maps an FMU carries (resources/maps.npz + maps.json, the latter as ``.meta``)."""
+def maps_from_fmu(fmu_path) -> CharacteristicMaps:
+    """The maps an FMU carries (``resources/maps.npz`` + ``maps.json``), read once and checked as
+    :func:`solenoid_fmu.maps.load_maps` checks a maps directory."""
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
         raise ImproveError(f"{fmu_path}: FMU file not found")
     try:
         with zipfile.ZipFile(fmu_path) as zf, tempfile.TemporaryDirectory(prefix="solenoid_improve_") as tmp:
-            for name in ("maps.npz", "maps.json"):
+            for name in (MAPS_NPZ, MAPS_JSON):
                 Path(tmp, name).write_bytes(zf.read(f"resources/{name}"))
-            tab = load_tables(tmp)
+            return load_maps(tmp)
     except (KeyError, zipfile.BadZipFile, OSError) as exc:
         raise ImproveError(f"{fmu_path}: not a solenoid-fmu FMU with maps in resources/ ({exc})") from None
-    except ModelError as exc:  # load_tables: the maps are not readable or not valid (ModelMapsError)
+    except MapsError as exc:  # the maps are not readable or not valid
         raise ImproveError(f"{fmu_path}: {exc}") from None
-    tab.where = str(fmu_path)
-    return tab
+
+
+def tables_from_fmu(fmu_path) -> MapTables:
+    """The model's tables of the maps an FMU carries (:func:`maps_from_fmu`; maps.json as ``.meta``)."""
+    try:
+        return maps_tables(maps_from_fmu(fmu_path), where=str(fmu_path))
+    except MapsError as exc:
+        raise ImproveError(f"{fmu_path}: {exc}") from None
+
+
+def with_maps_meta(maps: CharacteristicMaps, tables: MapTables) -> CharacteristicMaps:
+    """``maps`` with the maps.json meta of ``tables`` (the effects the loop added, a refit G_eddy): the
+    improved maps, written by :func:`solenoid_fmu.maps.save_maps` and packed into the improved FMU."""
+    meta = {k: v for k, v in tables.meta.items() if k not in ("schema", "schema_version", "arrays")}
+    return dataclasses.replace(maps, metadata=meta)
 
 
 def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None,
@@ -63,13 +77,3 @@ def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None
     psi = np.arange(tables.n_psi) * tables.dpsi_Wb
     return MapTables(psi, t["x_m"], t["i_f_A"], t["force_N"], extrapolated=tables.extrapolated, meta=meta,
                      where=tables.where, i_fem_max_A=tables.i_fem_max_A)
-
-
-def write_maps_dir(tables: MapTables, fmu_path, dest_dir) -> Path:
-    """Write the improved maps directory: the FMU's maps with ``tables``' maps.json meta (the effects),
-    through the one maps writer :func:`solenoid_fmu.maps.save_maps`."""
-    with zipfile.ZipFile(fmu_path) as zf, tempfile.TemporaryDirectory(prefix="solenoid_improve_") as tmp:
-        for name in ("maps.npz", "maps.json"):
-            Path(tmp, name).write_bytes(zf.read(f"resources/{name}"))
-        maps = load_maps(tmp)
-    return save_maps(dataclasses.replace(maps, metadata=tables.meta), dest_dir)

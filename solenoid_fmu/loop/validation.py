@@ -19,6 +19,8 @@ signal        measured vs simulated
 The metrics (``rms``, ``max``, ``nrmse``, ``nrmse_fs``) are defined in :mod:`solenoid_fmu.loop.metrics`,
 the figures drawn by :mod:`solenoid_fmu.loop.plots`.
 
+:func:`validate_model` runs the model in this process instead of the FMU (``improve``: the FMU is an output).
+
 Output (:func:`validate_cases`, :func:`validate`; JSON as printed by ``solenoid-fmu validate --json``)::
 
     {"recordings": [{"file": "01_flux_0p50A.csv", "kind": "flux", "drive": "current",
@@ -35,10 +37,12 @@ import json
 from pathlib import Path
 
 from ..errors import FmuInputError, RecordingError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_bytes, atomic_write_text
+from ..fmu import simulate_model
 from ..measure import Recording, flux_linkage, read_recording
+from ..realtime import MapTables
 from .metrics import ValidationError, summarize, validate_cases
-from .plots import plot_overlay, plot_residual
+from .plots import overlay_png, residual_png
 from .residuals import cases_from_recordings
 
 
@@ -109,6 +113,38 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
         raise FmuInputError(f"{fmu_path}: FMU file not found")
+    return _validate(str(fmu_path), recordings, lambda rec: cases_from_recordings(fmu_path, [rec], progress=progress,
+                                                                                  flux_of=flux_of), report_dir)
+
+
+def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None, progress=None,
+                   flux_of=flux_linkage, images: dict | None = None) -> dict:
+    """:func:`validate` with the real-time model run in this process on ``tables`` instead of an FMU.
+
+    The FMU runs the same model on the same maps (:func:`solenoid_fmu.fmu.simulate_model`, whose agreement
+    with the FMU is tested), so this is the validation of an FMU built from ``tables`` without reading it.
+
+    Parameters
+    ----------
+    tables : MapTables
+        The maps, with any ``effects`` section in their meta.
+    recordings : list of path-like or Recording
+    label : str
+        What the result's ``"fmu"`` names (the FMU built from ``tables``).
+    report_dir, progress, flux_of : see :func:`validate`
+    images : dict, optional
+        Receives the figures written to ``report_dir``, ``{str(path): PNG bytes}`` (a report embeds them from
+        memory).
+    """
+    def cases_of(rec):
+        return cases_from_recordings(None, [rec], progress=progress, flux_of=flux_of,
+                                     simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
+
+    return _validate(label, recordings, cases_of, report_dir, images)
+
+
+def _validate(label: str, recordings, cases_of, report_dir, images: dict | None = None) -> dict:
+    """The validation of :func:`validate` and :func:`validate_model`; ``cases_of(rec)`` simulates one."""
     recordings = list(recordings)
     if not recordings:
         raise ValidationError("validate needs at least one recording")
@@ -118,7 +154,7 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
     out_dir = None if report_dir is None else Path(report_dir)
     entries, figures = [], []
     for rec, name, stem in zip(recs, names, stems, strict=True):
-        found = cases_from_recordings(fmu_path, [rec], progress=progress, flux_of=flux_of)
+        found = cases_of(rec)
         if not found:
             entry = {"file": name, "kind": rec.kind, "drive": "", "signals": {},
                      "note": "nothing to compare (no force; no voltage in a current-driven run)"}
@@ -132,12 +168,14 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
         entry["file"] = name
         entry["figures"] = {}
         if out_dir is not None:
-            ov = plot_overlay(case, out_dir / f"{stem}_overlay.png")
-            rs = plot_residual(case, out_dir / f"{stem}_residual.png")
-            entry["figures"] = {"overlay": str(ov), "residual": str(rs)}
-            figures += [str(ov), str(rs)]
+            for key, png in (("overlay", overlay_png(case)), ("residual", residual_png(case))):
+                written = str(atomic_write_bytes(out_dir / f"{stem}_{key}.png", png))
+                entry["figures"][key] = written
+                figures.append(written)
+                if images is not None:
+                    images[written] = png
         entries.append(entry)
-    result = {"fmu": str(fmu_path), "recordings": entries, "summary": summarize(entries), "figures": figures}
+    result = {"fmu": label, "recordings": entries, "summary": summarize(entries), "figures": figures}
     if out_dir is not None:
         atomic_write_text(out_dir / "validation.json", json.dumps(result, indent=2) + "\n")
     return result

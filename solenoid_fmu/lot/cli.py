@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
+from ..argtypes import process_count
 from ..fileio import jsonable
 from ..pipeline import PRESETS
 from .execute import run_batch
@@ -20,7 +20,7 @@ def add_cli(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="output folder: OUT/<unit>/, lot.csv, lot.html")
     p.add_argument("--scheduler", default="local", help="'local' (a process pool here, default) or a Dask "
                    "scheduler address (tcp://host:8786)")
-    p.add_argument("--workers", type=_workers, help="processes of the local pool (default: all cores)")
+    p.add_argument("--workers", type=process_count, help="processes of the local pool (default: all cores)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick", help="pipeline preset of every unit "
                    "(default quick)")
     p.add_argument("--geometry", help="geometry TOML of the lot's solenoid (default: the packaged PS45)")
@@ -28,16 +28,6 @@ def add_cli(sub) -> None:
                    "nominal steel; default: the literature curve)")
     p.add_argument("--json", action="store_true", help="print the lot's rows as JSON on stdout")
     p.set_defaults(func=_cli)
-
-
-def _workers(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return n
 
 
 def _cli(args) -> int:

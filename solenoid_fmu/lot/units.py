@@ -17,7 +17,7 @@ import uuid
 from pathlib import Path
 
 from ..errors import SolenoidError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_text, write_files
 from ..pipeline import INCOMPLETE_MARKER
 
 __all__ = ["UNIT_JSON", "LotError", "campaign_files", "input_sha256", "publish_unit", "read_unit_json",
@@ -98,12 +98,10 @@ def publish_unit(out_dir, name: str, files: dict[str, bytes], unit_record: dict)
     tmp = out / f"{_TMP}{name}-{uuid.uuid4().hex[:8]}"
     tmp.mkdir(parents=True)
     try:
-        for rel, data in files.items():
-            dest = tmp / rel
-            if not dest.resolve().is_relative_to(tmp.resolve()):
-                raise LotError(f"unit {name}: output path {rel!r} leaves the unit's folder")
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            dest.write_bytes(data)
+        try:
+            write_files(tmp, files, f"unit {name}: output path")
+        except ValueError as exc:
+            raise LotError(str(exc)) from None
         atomic_write_text(tmp / UNIT_JSON, json.dumps(unit_record, indent=1, allow_nan=True) + "\n")
         final = out / name
         old = None

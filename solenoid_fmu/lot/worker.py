@@ -22,6 +22,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from ..fileio import write_files
 from ..pipeline import run_pipeline
 from .features import unit_features
 
@@ -89,12 +90,7 @@ def run_unit(name: str, files: dict, *, preset: str = "quick", geometry_text: st
     with tempfile.TemporaryDirectory(prefix="solenoid-lot-") as tmp, threadpool_limits(limits=1):
         camp, out = Path(tmp) / "in" / name, Path(tmp) / "out" / name
         try:
-            for rel, data in files.items():
-                dest = camp / rel
-                if not dest.resolve().is_relative_to(camp.resolve()):
-                    raise ValueError(f"campaign file {rel!r} leaves the campaign folder")
-                dest.parent.mkdir(parents=True, exist_ok=True)
-                dest.write_bytes(data)
+            write_files(camp, files, "campaign file")
             camp.mkdir(parents=True, exist_ok=True)
             geometry = None
             if geometry_text is not None:

@@ -18,23 +18,26 @@ positive when it pulls the armature towards the pole (closes the working gap x).
 """
 
 from .check import CycleEnergy, cycle_energy_balance, rectangle_cycle
-from .eddy import EddyFit, fit_eddy
+from .eddy import EddyFit, fit_eddy, with_fitted_eddy
 from .export import export_combitable2d, export_mat, read_combitable2d
 from .interpolate import force_at, force_psi_at, i_f_at, psi_at
 from .invert import invert_maps, round_trip_error
-from .io import load_maps, name_problem, save_maps
+from .io import encode_maps, load_maps, maps_tables, name_problem, save_maps
 from .sweep import (
+    CAMPAIGN_CURRENT_MARGIN,
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
     InlineExecutor,
     build_maps,
     default_currents,
     default_positions,
+    maps_current_grid,
     process_pool,
 )
 from .tables import CharacteristicMaps
 
 __all__ = [
+    "CAMPAIGN_CURRENT_MARGIN",
     "CharacteristicMaps",
     "CycleEnergy",
     "DEFAULT_CURRENT_FACTOR",
@@ -43,6 +46,7 @@ __all__ = [
     "InlineExecutor",
     "build_maps",
     "cycle_energy_balance",
+    "encode_maps",
     "default_currents",
     "default_positions",
     "export_combitable2d",
@@ -53,6 +57,8 @@ __all__ = [
     "i_f_at",
     "invert_maps",
     "load_maps",
+    "maps_current_grid",
+    "maps_tables",
     "name_problem",
     "process_pool",
     "psi_at",
@@ -60,4 +66,5 @@ __all__ = [
     "rectangle_cycle",
     "round_trip_error",
     "save_maps",
+    "with_fitted_eddy",
 ]

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..argtypes import number
+from ..argtypes import number, process_count
 from ..errors import MapsError
 from ..field import MIN_MESH_SIZE, load_geometry, load_material
 from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
 from ..realtime import MAPS_JSON, MAPS_NPZ
-from .eddy import fit_eddy
+from .eddy import with_fitted_eddy
 from .export import DERIVED_FILES, DERIVED_PLOTS, export_combitable2d, export_mat, remove_stale_exports
 from .io import load_maps, name_problem, save_maps
 from .plots import plot_maps
@@ -57,16 +57,6 @@ def parse_range(text: str, what: str = "range") -> tuple[float, float, int]:
     return start, stop, n
 
 
-def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {n}")
-    return n
-
-
 def add_cli(subparsers) -> None:
     """Register ``solenoid-fmu maps`` (``eddy`` comes later in the help: :func:`add_eddy_cli`)."""
     _add_maps_cli(subparsers)
@@ -100,7 +90,7 @@ def _add_maps_cli(subparsers) -> None:
                         "current, 26 currents, denser at low currents)")
     p.add_argument("--mesh-size", metavar="H", type=number(MIN_MESH_SIZE), default=1.0,
                    help="mesh-size factor (default 1.0; larger is coarser)")
-    p.add_argument("--workers", metavar="N", type=_positive_int, default=None,
+    p.add_argument("--workers", metavar="N", type=process_count, default=None,
                    help="parallel processes (default: all cores; 1 runs in this process)")
     p.add_argument("-o", "--output", metavar="maps/NAME", help="map directory to write")
     p.add_argument("--from", dest="source", metavar="maps/NAME", help="use an existing map, no sweep")
@@ -208,11 +198,9 @@ def add_eddy_cli(sub) -> None:
 
 
 def _eddy_cli(args) -> int:
-    maps = load_maps(args.maps)
-    fit = fit_eddy(args.recordings, maps)
+    fitted, fit = with_fitted_eddy(load_maps(args.maps), args.recordings)
     if args.write:
-        save_maps(maps.with_eddy(fit.G_model_S, source=", ".join(Path(r).name for r in args.recordings)),
-                  args.maps)
+        save_maps(fitted, args.maps)
     if args.json:
         print(json.dumps(fit.as_dict()))
         return 0

@@ -182,3 +182,23 @@ def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
     if left_out:
         msg += f"; left out {len(left_out)} recording(s): " + "; ".join(left_out)
     return EddyFit(g, r2, per, ok, msg)
+
+
+def with_fitted_eddy(maps: CharacteristicMaps, recordings) -> tuple[CharacteristicMaps, EddyFit]:
+    """The one place the maps' G_eddy is set from recordings: :func:`fit_eddy` on ``recordings``, and the maps
+    with its :attr:`EddyFit.G_model_S` (``eddy.source``: the recordings' file names).
+
+    Parameters
+    ----------
+    maps : CharacteristicMaps
+    recordings : list of path-like or Recording
+        ``eddy`` recordings.
+
+    Returns
+    -------
+    (CharacteristicMaps, EddyFit)
+    """
+    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
+    fit = fit_eddy(recs, maps)
+    source = ", ".join(r.path.name if r.path is not None else r.kind for r in recs)
+    return maps.with_eddy(fit.G_model_S, source=source), fit

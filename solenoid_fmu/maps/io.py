@@ -28,6 +28,7 @@ from ..realtime import (
     MAPS_PREVIOUS,
     MAPS_SCHEMA,
     MAPS_SCHEMA_VERSION,
+    MapTables,
     ModelMapsError,
     maps_pair_consistent,
     read_maps_dir,
@@ -35,7 +36,7 @@ from ..realtime import (
 from .consistency import consistency_problems
 from .tables import ARRAY_UNITS, FORCE_METHODS, CharacteristicMaps, array_problems, problem_message
 
-__all__ = ["load_maps", "name_problem", "save_maps"]
+__all__ = ["encode_maps", "load_maps", "maps_tables", "name_problem", "save_maps"]
 
 
 def save_maps(maps: CharacteristicMaps, directory) -> Path:
@@ -62,6 +63,27 @@ def save_maps(maps: CharacteristicMaps, directory) -> Path:
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
+    npz, sidecar = encode_maps(maps, default_name=directory.name)
+    with dir_lock(directory):
+        _commit_pair(directory, npz, sidecar)
+    return directory
+
+
+def encode_maps(maps: CharacteristicMaps, default_name: str = "maps") -> tuple[bytes, bytes]:
+    """The bytes of ``maps.npz`` and ``maps.json`` as :func:`save_maps` writes them (nothing is written).
+
+    Parameters
+    ----------
+    maps : CharacteristicMaps
+    default_name : str
+        The sidecar's ``name`` when the metadata has none (:func:`save_maps`: the directory's name).
+
+    Returns
+    -------
+    (bytes, bytes)
+        The npz (float64 arrays, no pickles) and the UTF-8 JSON sidecar (schema, units, the npz's sha256
+        and shapes under ``"arrays"``).
+    """
     buf = io.BytesIO()
     np.savez(buf, **{k: np.ascontiguousarray(v, dtype=np.float64) for k, v in maps.arrays().items()})
     npz = buf.getvalue()
@@ -76,11 +98,39 @@ def save_maps(maps: CharacteristicMaps, directory) -> Path:
             "shapes": {k: list(v.shape) for k, v in maps.arrays().items()},
         },
     }
-    meta.setdefault("name", directory.name)
-    text = json.dumps(meta, indent=2, allow_nan=False) + "\n"
-    with dir_lock(directory):
-        _commit_pair(directory, npz, text.encode("utf-8"))
-    return directory
+    meta.setdefault("name", default_name)
+    return npz, (json.dumps(meta, indent=2, allow_nan=False) + "\n").encode("utf-8")
+
+
+def maps_tables(maps: CharacteristicMaps, where: str | None = None) -> MapTables:
+    """The real-time model's :class:`~solenoid_fmu.realtime.MapTables` of ``maps``, in memory.
+
+    The same tables :func:`solenoid_fmu.realtime.load_tables` reads from the maps' directory written by
+    :func:`save_maps` (the sidecar as ``meta``, the sweep's top current as ``i_fem_max_A``), after the checks
+    of :func:`load_maps` (metadata, consistency of the tables).
+
+    Parameters
+    ----------
+    maps : CharacteristicMaps
+    where : str, optional
+        The name in error messages (default: the maps' name).
+
+    Raises
+    ------
+    MapsError
+        The maps' metadata or tables are not what :func:`load_maps` accepts.
+    """
+    _, sidecar = encode_maps(maps)
+    meta = json.loads(sidecar)
+    where = where or meta["name"]
+    problems = _meta_problems(meta) or consistency_problems(maps)
+    if problems:
+        raise MapsError(problem_message(where, problems))
+    try:
+        return MapTables(maps.psi_Wb, maps.x_m, maps.i_f_A, maps.force_N, extrapolated=maps.extrapolated, meta=meta,
+                         where=where, i_fem_max_A=float(np.max(maps.i_A)) if maps.i_A.size else None)
+    except ModelMapsError as exc:
+        raise MapsError(str(exc)) from None
 
 
 def _fsync_dir(directory: Path) -> None:

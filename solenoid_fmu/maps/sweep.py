@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from .. import __version__
+from .._version import __version__
 from ..errors import MapsError, SolenoidError
 from ..field import sweep_currents
 from .invert import invert_maps
@@ -166,6 +166,38 @@ def default_currents(i_top_A: float, n: int = DEFAULT_NI, power: float = 1.5) ->
     return i_top_A * (np.arange(n) / (n - 1)) ** power
 
 
+#: The maps sweep of a campaign reaches at least this multiple of the largest |current| [A] in its recordings.
+CAMPAIGN_CURRENT_MARGIN = 1.25
+
+
+def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None) -> np.ndarray:
+    """Currents [A] of the maps sweep, from 0 to the larger of ``DEFAULT_CURRENT_FACTOR`` (1.25) x the coil's
+    rated current and ``CAMPAIGN_CURRENT_MARGIN`` (1.25) x the largest |current| in ``recordings``.
+
+    The spacing is :func:`default_currents`'s (denser at low currents). When the
+    campaign pushes the top up, the number of currents grows with ``top^(2/3)`` so the first step (near the
+    iron's knee) stays as fine as with ``n_i`` currents up to the rated top (within 0.2 %: a top pushed up by
+    measurement noise adds no current).
+
+    Parameters
+    ----------
+    rated_current_A : float
+        The coil's rated current ``geometry.coil.max_current_A`` [A].
+    recordings : iterable of Recording
+        The campaign; their ``current_A`` columns (non-finite samples ignored).
+    n_i : int, optional
+        Number of currents up to the rated top (default :data:`DEFAULT_NI`).
+    """
+    n_i = DEFAULT_NI if n_i is None else int(n_i)
+    rated_top = DEFAULT_CURRENT_FACTOR * rated_current_A
+    peaks = [float(np.max(np.abs(c[np.isfinite(c)]), initial=0.0))
+             for c in (np.asarray(r.current_A, dtype=float) for r in recordings)]
+    top = max([rated_top] + [CAMPAIGN_CURRENT_MARGIN * p for p in peaks])
+    if top > rated_top:
+        n_i = math.ceil((n_i - 1) * (top / rated_top) ** (2 / 3) - 0.01) + 1  # 0.01: no extra point for noise
+    return default_currents(top, n_i)
+
+
 def build_maps(
     geometry,
     material,
@@ -224,6 +256,47 @@ def build_maps(
     MapsError
         Bad grids, a failed FEM task (naming x), non-monotone Psi(i) (naming x and i).
     """
+    x_m, i_A = _checked_grids(geometry, x_m, i_A, mesh_size)
+    sweep = sweep if sweep is not None else _default_sweep()
+    own_executor = executor is None
+    if own_executor:
+        executor = process_pool()
+    t0 = time.perf_counter()
+    try:
+        psi, force, stress, newton, recovered = _run_sweep(sweep, geometry, material, x_m, i_A, mesh_size, executor,
+                                                           progress)
+    finally:
+        if own_executor:
+            executor.shutdown(wait=True, cancel_futures=True)
+    solver = _solver_record(sweep, executor, mesh_size, time.perf_counter() - t0, x_m, i_A, newton, recovered)
+    metadata = _metadata(geometry, material, name, mesh_size, solver)
+    return invert_maps(x_m, i_A, psi, force, stress, metadata=metadata, npsi=npsi)
+
+
+def _solver_record(sweep, executor, mesh_size, wall_s: float, x_m, i_A, newton, recovered) -> dict:
+    """The provenance's ``solver`` entry: the sweep function, executor, wall time [s], Newton counts, the points
+    Newton recovered, and the FEM's ``SOLVER_SETTINGS`` where the sweep's module has them."""
+    solver = {
+        "sweep": f"{getattr(sweep, '__module__', '?')}.{getattr(sweep, '__qualname__', repr(sweep))}",
+        "mesh_size": float(mesh_size),
+        "warm_start": "along the current list at each position",
+        "executor": type(executor).__name__,
+        "workers": getattr(executor, "_max_workers", None),
+        "wall_time_s": round(wall_s, 3),
+        "operating_points": int(newton.size),
+        "newton_iterations_total": int(newton.sum()),
+        "newton_iterations_max": int(newton.max()),
+        # (x [mm], i [A]) of the points where Newton stalled (accepted) or was recovered by load stepping
+        "newton_recovered_x_mm_i_A": [[float(x_m[j]) * 1e3, float(i_A[k])] for k, j in np.argwhere(recovered)],
+    }
+    fem_settings = getattr(sys.modules.get(getattr(sweep, "__module__", ""), None), "SOLVER_SETTINGS", None)
+    if isinstance(fem_settings, dict):
+        solver["fem_settings"] = json.loads(json.dumps(fem_settings, default=str))
+    return solver
+
+
+def _checked_grids(geometry, x_m, i_A, mesh_size) -> tuple[np.ndarray, np.ndarray]:
+    """The sweep's positions [m] and currents [A] (defaults filled in), checked against the geometry."""
     stroke, coil = geometry.stroke, geometry.coil
     x_default = default_positions(stroke.min_m, stroke.max_m, DEFAULT_NX)
     i_default = default_currents(DEFAULT_CURRENT_FACTOR * coil.max_current_A, DEFAULT_NI)
@@ -244,17 +317,18 @@ def build_maps(
         )
     if not (isinstance(mesh_size, int | float) and math.isfinite(mesh_size) and mesh_size > 0):
         raise MapsError(f"mesh_size must be a finite number > 0, got {mesh_size!r}")
-    sweep = sweep if sweep is not None else _default_sweep()
-    own_executor = executor is None
-    if own_executor:
-        executor = process_pool()
+    return x_m, i_A
+
+
+def _run_sweep(sweep, geometry, material, x_m, i_A, mesh_size, executor, progress: bool) -> tuple:
+    """One task per position on ``executor``; the tables (i, x) of Psi, force (co-energy and Maxwell stress),
+    Newton iterations and recovered points. A failed task cancels the others (:func:`build_maps`)."""
     ni, nx = len(i_A), len(x_m)
     psi = np.empty((ni, nx))
     force = np.empty((ni, nx))
     stress = np.empty((ni, nx))
     newton = np.zeros((ni, nx))
     recovered = np.zeros((ni, nx))
-    t0 = time.perf_counter()
     bar = tqdm(total=ni * nx, desc="FEM sweep", unit="pt", file=sys.stderr, disable=not progress,
                dynamic_ncols=True)
     futures: dict[cf.Future, int] = {}
@@ -285,29 +359,14 @@ def build_maps(
         raise
     finally:
         bar.close()
-        if own_executor:
-            executor.shutdown(wait=True, cancel_futures=True)
-    wall = time.perf_counter() - t0
-    workers = getattr(executor, "_max_workers", None)
+    return psi, force, stress, newton, recovered
+
+
+def _metadata(geometry, material, name, mesh_size, solver: dict) -> dict:
+    """The maps' metadata (maps.json without the arrays' entries): name, coil, stroke, eddy, provenance."""
+    stroke, coil = geometry.stroke, geometry.coil
     version = _code_version()
-    sweep_name = f"{getattr(sweep, '__module__', '?')}.{getattr(sweep, '__qualname__', repr(sweep))}"
-    solver = {
-        "sweep": sweep_name,
-        "mesh_size": float(mesh_size),
-        "warm_start": "along the current list at each position",
-        "executor": type(executor).__name__,
-        "workers": workers,
-        "wall_time_s": round(wall, 3),
-        "operating_points": int(ni * nx),
-        "newton_iterations_total": int(newton.sum()),
-        "newton_iterations_max": int(newton.max()),
-        # (x [mm], i [A]) of the points where Newton stalled (accepted) or was recovered by load stepping
-        "newton_recovered_x_mm_i_A": [[float(x_m[j]) * 1e3, float(i_A[k])] for k, j in np.argwhere(recovered)],
-    }
-    fem_settings = getattr(sys.modules.get(getattr(sweep, "__module__", ""), None), "SOLVER_SETTINGS", None)
-    if isinstance(fem_settings, dict):
-        solver["fem_settings"] = json.loads(json.dumps(fem_settings, default=str))
-    metadata = {
+    return {
         "name": name or str(geometry.name),
         "force_method": "coenergy",
         "coil": {
@@ -332,7 +391,6 @@ def build_maps(
             "solver": solver,
         },
     }
-    return invert_maps(x_m, i_A, psi, force, stress, metadata=metadata, npsi=npsi)
 
 
 def _sweep_columns(result, ni: int, x: float):

@@ -48,14 +48,15 @@ def _plain(v) -> str:
     return str(v)
 
 
-def write_campaign_report(path, name, summary, ident, res, before) -> Path:
+def write_campaign_report(path, name, summary, ident, res, before, images: dict | None = None) -> Path:
     """The pipeline's ``report.html``: summary, identification, eddy, diagnosis, improvement steps,
     errors before and after, validation figures.
 
     ``summary`` is the pipeline's summary dict (``summary.json``), ``ident`` the identification
     result (``rms_before``, ``rms_after``; figures in ``identify/`` beside ``material/``), ``res``
-    the result of :func:`solenoid_fmu.loop.improve` and ``before`` its validation of the FMU
-    before improvement.
+    the result of :func:`solenoid_fmu.loop.improve` (its ``as_dict()``) and ``before`` its validation of the
+    model before improvement; ``images`` (``{str(path): bytes}``, :attr:`solenoid_fmu.loop.ImproveResult.images`)
+    the validation figures in memory (embedded without reading their files back).
     """
     ident_dir = Path(summary["material"]).parent.parent / "identify"
     ident_figs = sorted(ident_dir.glob("*.png"))
@@ -105,7 +106,7 @@ def write_campaign_report(path, name, summary, ident, res, before) -> Path:
         {"heading": "Validation of the improved FMU", "figures": res["after"].get("figures", [])},
         {"heading": "Validation of the FMU before improvement", "figures": before.get("figures", [])},
     ]
-    return write_html_report(path, f"solenoid-fmu pipeline: {name}", sections)
+    return write_html_report(path, f"solenoid-fmu pipeline: {name}", sections, images=images)
 
 
 def summary_table(summary) -> dict:

@@ -27,7 +27,7 @@ import numbers
 from datetime import UTC, datetime
 from pathlib import Path
 
-from .. import __version__
+from .._version import __version__
 from ..errors import SolenoidError
 from ..fileio import atomic_write_text
 
@@ -58,7 +58,7 @@ class ReportError(SolenoidError):
     """A report input is unusable (a figure file missing or of an unknown format, a bad section)."""
 
 
-def figure_to_data_uri(figure) -> str:
+def figure_to_data_uri(figure, data: bytes | None = None) -> str:
     """A figure as a ``data:`` URI with base64 content.
 
     Parameters
@@ -66,6 +66,8 @@ def figure_to_data_uri(figure) -> str:
     figure : path-like or matplotlib.figure.Figure
         An image file (``.png``, ``.jpg``/``.jpeg``, ``.svg``; PNG and JPEG also recognized by
         content) or a matplotlib figure (rendered to PNG at 100 dpi).
+    data : bytes, optional
+        The image file's content, when the caller has it (the file is then not read).
 
     Returns
     -------
@@ -84,7 +86,7 @@ def figure_to_data_uri(figure) -> str:
     else:
         path = Path(figure)
         try:
-            data = path.read_bytes()
+            data = path.read_bytes() if data is None else data
         except OSError as exc:
             raise ReportError(f"{path}: cannot read figure: {exc.strerror or exc}") from None
         if data.startswith(b"\x89PNG\r\n\x1a\n"):
@@ -142,7 +144,7 @@ def _table(table: dict, where: str) -> str:
     return "\n".join(out)
 
 
-def _figure(item, where: str) -> str:
+def _figure(item, where: str, images: dict) -> str:
     caption = None
     if isinstance(item, tuple):
         if len(item) != 2:
@@ -150,13 +152,13 @@ def _figure(item, where: str) -> str:
         item, caption = item
     if caption is None and not hasattr(item, "savefig"):
         caption = Path(item).name
-    uri = figure_to_data_uri(item)
+    uri = figure_to_data_uri(item, None if hasattr(item, "savefig") else images.get(str(item)))
     alt = html.escape(caption or "figure", quote=True)
     cap = f"<figcaption>{html.escape(caption)}</figcaption>" if caption else ""
     return f'<figure><img src="{uri}" alt="{alt}">{cap}</figure>'
 
 
-def write_html_report(path, title: str, sections) -> Path:
+def write_html_report(path, title: str, sections, images: dict | None = None) -> Path:
     """Write one self-contained HTML5 report (figures embedded, inline CSS), atomically.
 
     Parameters
@@ -170,6 +172,9 @@ def write_html_report(path, title: str, sections) -> Path:
         "html": str}``; only ``heading`` is required. ``text`` is plain text (escaped; blank lines
         separate paragraphs); table numbers get 4 significant digits; figures are paths,
         matplotlib figures or ``(figure, caption)`` tuples; ``html`` is inserted unescaped.
+    images : dict, optional
+        ``{str(path): bytes}``: the content of figure files the caller wrote and still has (embedded from
+        memory, the files are not read back).
 
     Returns
     -------
@@ -199,7 +204,7 @@ def write_html_report(path, title: str, sections) -> Path:
         if sec.get("table") is not None:
             body.append(_table(sec["table"], where))
         for fig in sec.get("figures") or []:
-            body.append(_figure(fig, where))
+            body.append(_figure(fig, where, images or {}))
         if sec.get("html"):
             body.append(str(sec["html"]))
         body.append("</section>")
