@@ -26,14 +26,11 @@ hold on real campaigns"):
 
 Uncertainty of a point (1 sigma, absolute): a relative floor (:data:`PSI_FLOOR_REL`,
 :data:`FORCE_FLOOR_REL`, of the value or of a fifth of the recording's largest value, whichever
-is larger), and for flux the bias of the branch mean of a rate-independent loop, **one-sided**: the
-mean lies above the magnetization curve (Rayleigh's loops: mean - initial curve = nu H (H_m - H) >= 0,
-at most the half-width w), so where the model lies below the mean the point's sigma adds
-:data:`LOOP_BIAS_WIDTHS` w and the second-order term ``|Psi''| h^2 / 2`` (h: the current half-width),
-and where it lies above, only the floor and the resistance track's share count. Unipolar loops start
-from a remanence above zero and lie higher still (1.4-2 w near the origin on the rig's Preisach steel);
-a budget of 2 w there let weakly pinned low fields drift with the prior (X6Cr17: Psi -7.5 % at 0.25 A),
-so the budget stays at Rayleigh's bound.
+is larger), and for flux the bias of the branch mean of a rate-independent loop, second order in
+its current half-width h: ``|Psi''| h^2 / 2``, plus a share of the half-width w: all of it below
+:data:`LOOP_NEAR_ORIGIN` h (the loops are unipolar: the descending branch ends at the remanence, so
+the mean there is biased to first order), falling as 1/i above, to :data:`LOOP_ASYMMETRY` w (the first,
+virgin ascent is not symmetric to the descending branch).
 
 Units: SI (A, m, Wb, N).
 """
@@ -49,21 +46,23 @@ from ..errors import RecordingError
 from ..measure import campaign_resistance, commutation_curve, flux_linkage, hold_segments, peak_curves
 from .measured import force_stroke_curve, groups_of
 
-__all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_BIAS_WIDTHS", "FORCE_POSITIONS",
+__all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
            "flux_points", "force_points", "hold_points", "HOLD_KINDS", "eddy_split", "resistance_choice",
-           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD"]
+           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN"]
 
 #: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
 PSI_FLOOR_REL = 2e-3
 #: Relative 1-sigma floor of a measured force point (load cell, friction not quite symmetric).
 FORCE_FLOOR_REL = 4e-3
-#: Rate-independent loop half-widths the branch mean may lie above the magnetization curve (one-sided;
-#: Rayleigh's bound for symmetric loops).
-LOOP_BIAS_WIDTHS = 1.0
+#: Share of the rate-independent loop half-width counted as the branch mean's first-order bias.
+LOOP_ASYMMETRY = 0.1
 #: The coil counts as heating when the campaign's kappa exceeds this many of its sigmas.
 KAPPA_SIGNIFICANT = 3.0
 #: Current rates must differ by this factor among the loops to tell eddy currents from hysteresis.
 EDDY_RATE_SPREAD = 2.0
+#: Below this many loop half-widths (in current) the branch mean is no estimate of the curve at all
+#: (the descending branch ends at the remanence): there the whole half-width counts as its uncertainty.
+LOOP_NEAR_ORIGIN = 3.0
 #: A recording's own data (cycle closures, plateaus) overrule its header's R when they pin R at the start
 #: this many of their sigmas away from it: the header's 0.5 % is a prior, a three-cycle recording pins R to
 #: 0.01 %, and a header off by 0.1 % drifts that recording's eq.-4 flux by several per cent of the peak per cycle.
@@ -78,8 +77,7 @@ FORCE_POSITIONS = 3
 class MeasuredPoint:
     """One measured operating point: ``kind`` ``"psi"`` [Wb] or ``"force"`` [N] at (i_A, x_m),
     ``value`` and ``sigma`` (1-sigma, same unit), ``group`` (held-out unit: a stroke, a current
-    band or a force recording) and ``source`` (file names); ``sigma_if_above`` / ``sigma_if_below``: the
-    1-sigma on the side the model lies, where the point's bias has a known sign."""
+    band or a force recording) and ``source`` (file names)."""
 
     kind: str
     i_A: float
@@ -88,10 +86,6 @@ class MeasuredPoint:
     sigma: float
     group: str
     source: str
-    #: 1-sigma where the model lies above / below ``value`` when the point's error has a known sign (a bias
-    #: that can only go one way counts on its side only); None: ``sigma`` both ways.
-    sigma_if_above: float | None = None
-    sigma_if_below: float | None = None
 
 
 def _branch_pairs(results):
@@ -187,21 +181,19 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
         peak = float(np.max(np.abs(com_psi)))
         floor = PSI_FLOOR_REL * np.maximum(np.abs(psi_sel), 0.2 * peak)
         track = _track_sigma_rel(cc, camp) if heated else 0.0
-        bias = 0.5 * d2 * h_i**2 + LOOP_BIAS_WIDTHS * half_w
-        sigma_plain = np.sqrt(floor**2 + (track * np.abs(psi_sel)) ** 2)
-        sigma = np.sqrt(sigma_plain**2 + bias**2)
+        near = np.clip(LOOP_NEAR_ORIGIN * h_i / np.maximum(i_sel, 1e-12), LOOP_ASYMMETRY, 1.0)
+        bias = 0.5 * d2 * h_i**2 + near * half_w
+        sigma = np.sqrt(floor**2 + (track * np.abs(psi_sel)) ** 2 + bias**2)
         x = cc.position_m
         names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))
-        # the rate-independent loop's branch mean lies above the magnetization curve (module docstring):
-        # its bias counts only where the model lies below the mean
-        for i, p, s, s0 in zip(i_sel, psi_sel, sigma, sigma_plain, strict=True):
-            points.append(MeasuredPoint("psi", float(i), x, float(p), float(s), f"flux@{x * 1e3:.3f}mm", names,
-                                        sigma_if_above=float(s0)))
+        for i, p, s in zip(i_sel, psi_sel, sigma, strict=True):
+            points.append(MeasuredPoint("psi", float(i), x, float(p), float(s), f"flux@{x * 1e3:.3f}mm", names))
         details[key] = {"cc": cc, "i_A": i_sel, "psi_Wb": psi_sel, "sigma_Wb": sigma, "half_width_Wb": half_w}
     if len(ccs) == 1:  # one stroke: hold out current bands instead
         n = len(points)
         band = np.minimum((np.arange(n) * 3) // max(n, 1), 2)
-        points = [dataclasses.replace(p, group=f"{p.group}/band{b}") for p, b in zip(points, band, strict=True)]
+        points = [MeasuredPoint(p.kind, p.i_A, p.x_m, p.value, p.sigma, f"{p.group}/band{b}", p.source)
+                  for p, b in zip(points, band, strict=True)]
     return points, notes, {"G_eddy_S": G, "strokes": details, "resistance": camp.summary(), "heated": heated,
                              "camp": camp}
 
@@ -342,12 +334,9 @@ def hold_points(recs, camp=None, heated: bool = False, remanence_Wb: float = 0.0
             t_hold = float(np.mean(t[sl]) - t[0])
             walk = u_noise * np.sqrt(float(np.median(np.diff(t))) * t_hold)
             offset = fr.offset_uncertainty_Wb * t_hold / max(float(t[-1] - t[0]), 1e-12)
-            sig0 = float(np.sqrt((PSI_FLOOR_REL * psi) ** 2 + (track_rel * psi) ** 2 + (dR_sigma * q) ** 2
-                                 + walk**2 + offset**2))
-            sig = float(np.hypot(sig0, remanence_Wb))
-            # eq. 4 starts at zero where the steel starts at its remanence (>= 0 after positive excitation):
-            # the measured flux is short by it, so the remanence counts only where the model lies above
-            points.append(MeasuredPoint("psi", i, x, psi, sig, f"hold:{name}", name, sigma_if_below=sig0))
+            sig = float(np.sqrt((PSI_FLOOR_REL * psi) ** 2 + (track_rel * psi) ** 2 + remanence_Wb**2
+                                + (dR_sigma * q) ** 2 + walk**2 + offset**2))
+            points.append(MeasuredPoint("psi", i, x, psi, sig, f"hold:{name}", name))
             if rec.force_N is not None:
                 F = float(np.mean(rec.force_N[sl]))
                 points.append(MeasuredPoint("force", i, x, F, FORCE_FLOOR_REL * abs(F), f"hold:{name}", name))
