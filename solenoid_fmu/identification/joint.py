@@ -160,28 +160,22 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, m: int = 
     t0 = time.perf_counter()
     meas = np.array([p.value for p in points])
     sig = np.array([p.sigma for p in points])
-    sig_above = np.array([p.sigma if p.sigma_if_above is None else p.sigma_if_above for p in points])
-    sig_below = np.array([p.sigma if p.sigma_if_below is None else p.sigma_if_below for p in points])
     groups = np.array([p.group for p in points])
-    if not (np.all(np.isfinite(meas)) and np.all(sig > 0) and np.all(sig_above > 0) and np.all(sig_below > 0)):
+    if not (np.all(np.isfinite(meas)) and np.all(sig > 0)):
         raise SolenoidError("identification: measured points must be finite with positive uncertainty")
     pm = PointModel(geometry, [(p.kind, p.i_A, p.x_m) for p in points], lambda th: start_curve, mesh_size,
                     start_curve)
     history = []
 
     def res(theta):
-        r = (pm.values(theta) - meas) / sigma_at(theta)
+        r = (pm.values(theta) - meas) / sig
         history.append(float(np.sqrt(np.mean(r**2))))
         if progress is not None:
             progress(pm.evaluations, history[-1])
         return r
 
     def jac(theta):
-        return pm.jacobian(theta) / sigma_at(theta)[:, None]
-
-    def sigma_at(theta):
-        """Each point's 1-sigma on the side of its value the model lies (one-sided biases)."""
-        return np.where(pm.values(theta) > meas, sig_above, sig_below)
+        return pm.jacobian(theta) / sig[:, None]
 
     pred_start = pm.values(np.zeros(1))
     cands = {}
