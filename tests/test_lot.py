@@ -119,15 +119,17 @@ def _local_run(dirs, out: Path) -> dict:
     cmd = [sys.executable, "-m", "solenoid_fmu", "batch", *map(str, dirs), "-o", str(out), "--workers", "1",
            "--preset", "smoke", "--start-material", str(lotdata.NOMINAL_STEEL_CSV)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 600
+    t0 = time.monotonic()
+    deadline = t0 + 600
     while len(_complete(out, names)) < 2 and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.2)
     assert proc.poll() is None, "the batch ended before it could be interrupted"
+    at_sigint = {"s": round(time.monotonic() - t0, 1), "complete": sorted(_complete(out, names))}
     proc.send_signal(signal.SIGINT)
     _, stderr = proc.communicate(timeout=120)
     first = _complete(out, names)
     rerun = run_batch(dirs, out, workers=2, preset="smoke", start_material=lotdata.NOMINAL_STEEL_CSV, progress=False)
-    return {"out": out, "rc": proc.returncode, "stderr": stderr, "first": first, "rerun": rerun,
+    return {"out": out, "rc": proc.returncode, "stderr": stderr, "first": first, "rerun": rerun, "at_sigint": at_sigint,
             "after": _complete(out, names), "names": names, "dirs": dirs}
 
 
@@ -161,7 +163,7 @@ def test_a_lot_on_a_local_pool_and_on_a_dask_cluster(tmp_path):
 
 
 def _ctrl_c_keeps_finished_units_and_the_rerun_redoes_only_the_rest(r):
-    assert r["rc"] == 130, r["stderr"][-2000:]
+    assert r["rc"] == 130, (r["at_sigint"], r["stderr"][-2000:])  # when Ctrl-C came, and what the batch said
     first, names = r["first"], r["names"]
     assert 2 <= len(first) < len(names) - 1, first
     # exactly the units not complete at the interruption ran again; the complete ones kept their run
