@@ -118,7 +118,10 @@ def _local_run(dirs, out: Path) -> dict:
     names = [d.name for d in dirs]
     cmd = [sys.executable, "-m", "solenoid_fmu", "batch", *map(str, dirs), "-o", str(out), "--workers", "1",
            "--preset", "smoke", "--start-material", str(lotdata.NOMINAL_STEEL_CSV)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Ctrl-C's SIGINT at its default disposition in the batch: a test run started in the background of a shell
+    # without job control inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t0 = time.monotonic()
     deadline = t0 + 600
     while len(_complete(out, names)) < 2 and proc.poll() is None and time.monotonic() < deadline:
