@@ -132,8 +132,10 @@ class _Config:
         self.G = np.stack([basis.basis[k][0].grad for k in range(6)], axis=0)  # (6, 2, nel, nq)
         self.phi = np.stack([np.asarray(basis.basis[k][0]) for k in range(6)], axis=0)  # (6, nel, nq)
         self.w_over_r = self.dx / self.r
-        # products of basis gradients, contracted once per gap: GG[k, l] = grad phi_k . grad phi_l
-        self.GG = np.einsum("kdeq,ldeq->kleq", self.G, self.G)
+        # products of basis gradients, contracted once per gap, for the 21 pairs k <= l of the symmetric
+        # element matrices, one contiguous block per quadrature point: GGu[q, m] = grad phi_k . grad phi_l
+        GG = np.einsum("kdeq,ldeq->kleq", self.G, self.G)
+        self.GGu = np.ascontiguousarray(GG[_UPPER_K, _UPPER_L].transpose(2, 0, 1))  # (nq, 21, nel)
         # element Jacobians of the affine map and their x-derivative along the morph velocity
         t = basis.mesh.t  # skfem may reorder the vertices within each element: use its order
         p = self.p
@@ -163,6 +165,12 @@ class _Config:
         L = np.einsum("ijn,jkn->ikn", dJ, self.Jinv)
         dr_q = np.einsum("vn,vq->nq", vr[t], self.lam)
         return L, dr_q
+
+
+#: The 21 index pairs k <= l of a symmetric 6 x 6 element matrix, and each (k, l)'s place among them.
+_UPPER_K, _UPPER_L = np.triu_indices(6)
+_SYM_FULL = np.zeros((6, 6), dtype=np.intp)
+_SYM_FULL[_UPPER_K, _UPPER_L] = _SYM_FULL[_UPPER_L, _UPPER_K] = np.arange(_UPPER_K.size)
 
 
 def _inv2(J: np.ndarray) -> np.ndarray:
@@ -510,8 +518,19 @@ class Solver:
         gG = np.einsum("deq,kdeq->keq", g, G)  # (6, nel, nq): g . grad phi_k
         a = cfg.w_over_r * nu
         c = cfg.w_over_r * 2 * dnu / r2
-        K_s = (cfg.GG * a).sum(axis=-1)  # (6, 6, nel) secant stiffness: res_loc = K_s u_e
-        K = K_s + np.einsum("keq,leq->kle", gG, gG * c)
+        # the 21 distinct entries of the symmetric element matrices, summed over the quadrature points one
+        # point at a time (elementwise products: the same rounding on every CPU, and K exactly symmetric)
+        gq = np.ascontiguousarray(gG.transpose(2, 0, 1))  # (nq, 6, nel)
+        gcq = gq * np.ascontiguousarray(c.T)[:, None, :]
+        aq = np.ascontiguousarray(a.T)  # (nq, nel)
+        ku, lu = _UPPER_K, _UPPER_L
+        Ks_u = cfg.GGu[0] * aq[0]
+        Kn_u = gq[0][ku] * gcq[0][lu]
+        for q in range(1, aq.shape[0]):
+            Ks_u += cfg.GGu[q] * aq[q]
+            Kn_u += gq[q][ku] * gcq[q][lu]
+        K_s = Ks_u[_SYM_FULL]  # (6, 6, nel) secant stiffness: res_loc = K_s u_e
+        K = (Ks_u + Kn_u)[_SYM_FULL]
         res_loc = np.einsum("keq,eq->ke", gG, a)
         res = np.bincount(self.dofs.ravel(), weights=res_loc.ravel(), minlength=self.ndofs) - f
         floor_loc = np.einsum("kle,le->ke", np.abs(K_s), np.abs(u[self.dofs]))
