@@ -69,6 +69,8 @@ class BackendDescription:
     step_error: str = "fmi2Discard"
 
 
+#: The maps.json keys the modelDescription's vendor annotation repeats (``<Maps>``, sorted JSON).
+_SIDECAR_KEYS = ("name", "force_method", "coil", "eddy", "effects", "provenance")
 #: CoSimulation capability flags of every export.
 _CS_FLAGS = (("needsExecutionTool", "false"), ("canHandleVariableCommunicationStepSize", "true"),
              ("canInterpolateInputs", "false"), ("canBeInstantiatedOnlyOncePerProcess", "false"),
@@ -149,9 +151,8 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_files: dict,
     if md_bytes is None:
         raise FmuBuildError(f"{fmu_path}: no modelDescription.xml in the FMU")
     root = etree.fromstring(md_bytes, etree.XMLParser(remove_blank_text=True))
-    meta = tables.meta
-    maps_name = str(meta.get("name") or maps_name)
-    prov = meta.get("provenance") or {}
+    maps_name = str(tables.name or maps_name)
+    prov = tables.provenance
     geo = prov.get("geometry") or {}
     sha_npz = hashlib.sha256(maps_files["maps.npz"]).hexdigest()
     sha_json = hashlib.sha256(maps_files["maps.json"]).hexdigest()
@@ -206,8 +207,7 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_files: dict,
     maps_el = etree.SubElement(tool, "Maps", name=maps_name, npz_sha256=sha_npz, json_sha256=sha_json,
                                psi_max_Wb=_fmt(tables.psi_max_Wb), x_min_m=_fmt(tables.x_min_m),
                                x_max_m=_fmt(tables.x_max_m), n_psi=str(tables.n_psi), n_x=str(tables.n_x))
-    sidecar = {k: meta.get(k) for k in ("name", "force_method", "coil", "eddy", "effects", "provenance")
-               if k in meta}
+    sidecar = {k: v for k, v in tables.meta.items() if k in _SIDECAR_KEYS}
     maps_el.text = json.dumps(sidecar, sort_keys=True)
 
     variables = children.get("ModelVariables")

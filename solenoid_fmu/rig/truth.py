@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from ..realtime import COPPER_ALPHA_PER_K, ROS2_GAMMA, HysteresisError, MapTables, PreisachHysteresis
+from ..realtime import ROS2_GAMMA, HysteresisError, MapTables, PreisachHysteresis
 from .daq import TruthResult
 from .effects import Effects
 from .errors import RigError, positive
@@ -66,16 +66,14 @@ class TruthModel:
                  h_sub_max_s: float = 5e-4):
         self.tables = tables
         self.effects = effects or Effects()
-        coil = tables.meta.get("coil") or {}
-        R20 = resistance_ohm_20C if resistance_ohm_20C is not None else coil.get("resistance_ohm_20C")
+        coil = tables.coil
+        R20 = resistance_ohm_20C if resistance_ohm_20C is not None else coil.resistance_ohm_20C
         if R20 is None:
             raise RigError("no coil resistance: give resistance_ohm_20C or maps with coil.resistance_ohm_20C")
         self.resistance_ohm_20C = positive("resistance_ohm_20C", R20)
-        if alpha_per_K is None:
-            alpha_per_K = coil.get("temperature_coefficient_per_K", COPPER_ALPHA_PER_K)
-        alpha = alpha_per_K
+        alpha = coil.alpha_per_K if alpha_per_K is None else alpha_per_K
         self.alpha_per_K = positive("alpha_per_K", alpha, allow_zero=True)
-        imax = max_current_A if max_current_A is not None else coil.get("max_current_A")
+        imax = max_current_A if max_current_A is not None else coil.max_current_A
         if imax is None:
             raise RigError("no maximum current: give max_current_A or maps with coil.max_current_A")
         self.max_current_A = positive("max_current_A", imax)
