@@ -140,12 +140,13 @@ class FluxResult:
                 "kappa_sigma_per_J", "psi_at_peak_sigma_Wb")
         if tr is None:
             return {**dict.fromkeys(keys), "resistance_pinned": None, "resistance_constraints": [],
-                    "header_resistance_disagrees": None, "resistance_why_not_pinned": ""}
+                    "header_resistance_disagrees": None, "header_resistance_overruled": None,
+                    "resistance_why_not_pinned": ""}
         vals = (tr.R0_sigma_ohm, tr.R_end_ohm, tr.R_end_sigma_ohm, tr.kappa_per_J, tr.kappa_sigma_per_J,
                 tr.psi_peak_sigma_Wb)
         return {**{k: num(v) for k, v in zip(keys, vals, strict=True)}, "resistance_pinned": tr.pinned,
                 "resistance_constraints": list(tr.constraints), "header_resistance_disagrees": tr.header_disagrees,
-                "resistance_why_not_pinned": tr.why_not_pinned}
+                "header_resistance_overruled": tr.header_overruled, "resistance_why_not_pinned": tr.why_not_pinned}
 
 
 def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101,
