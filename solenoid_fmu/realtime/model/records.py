@@ -90,7 +90,45 @@ def _as_dict(record) -> dict:
 
 
 @dataclass(frozen=True)
-class CoilRecord:
+class _Section:
+    """Reading and writing of a section record (:class:`CoilRecord`, :class:`EddyRecord`): the record's own
+    fields are the section's known keys.
+
+    Attributes
+    ----------
+    extra : dict
+        Keys of the section the record does not know, kept for :meth:`as_dict`.
+    keys : tuple of str
+        The section's keys in the file's order.
+    """
+
+    extra: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
+    keys: tuple = field(default=(), compare=False, repr=False, kw_only=True)
+    #: Keys written even when null (the file format requires them).
+    always = ()
+
+    @staticmethod
+    def problems(raw) -> list[str]:
+        """What is wrong with the section ``raw`` for the model's reader (keys may be missing)."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_dict(cls, raw, where: str = "maps"):
+        """The record of a parsed section (None: an empty record); ModelMapsError naming ``where``, the file
+        and the key when a value has the wrong type (:meth:`problems`)."""
+        _refuse(where, cls.problems(raw))
+        if raw is None:
+            return cls()
+        known, extra, keys = _split(cls, raw)
+        return cls(**known, extra=extra, keys=keys)
+
+    def as_dict(self) -> dict:
+        """The section as maps.json holds it (see the module docstring)."""
+        return _as_dict(self)
+
+
+@dataclass(frozen=True)
+class CoilRecord(_Section):
     """maps.json's ``coil`` section: the coil the maps were computed for.
 
     Attributes
@@ -103,33 +141,19 @@ class CoilRecord:
         Temperature coefficient of the resistance [1/K] (:attr:`alpha_per_K` with the default).
     max_current_A : float or None
         Rated (largest) current [A], the top of the FEM sweep.
-    extra : dict
-        Keys of the section this record does not know, kept for :meth:`as_dict`.
-    keys : tuple of str
-        The section's keys in the file's order.
+    extra, keys
+        What the section holds besides, and its order (:class:`_Section`).
     """
 
     turns: float | None = None
     resistance_ohm_20C: float | None = None
     temperature_coefficient_per_K: float | None = None
     max_current_A: float | None = None
-    extra: dict = field(default_factory=dict, compare=False, repr=False)
-    keys: tuple = field(default=(), compare=False, repr=False)
-    always = ()
 
-    @classmethod
-    def from_dict(cls, raw, where: str = "maps") -> CoilRecord:
-        """The record of a parsed ``coil`` section (None: an empty record); ModelMapsError naming ``where``,
-        the file and the key when a value has the wrong type (:func:`coil_problems`, keys may be missing)."""
-        _refuse(where, coil_problems(raw, complete=False))
-        if raw is None:
-            return cls()
-        known, extra, keys = _split(cls, raw)
-        return cls(**known, extra=extra, keys=keys)
-
-    def as_dict(self) -> dict:
-        """The section as maps.json holds it (see the module docstring)."""
-        return _as_dict(self)
+    @staticmethod
+    def problems(raw) -> list[str]:
+        """:func:`coil_problems`, keys may be missing."""
+        return coil_problems(raw, complete=False)
 
     @property
     def alpha_per_K(self) -> float:
@@ -139,7 +163,7 @@ class CoilRecord:
 
 
 @dataclass(frozen=True)
-class EddyRecord:
+class EddyRecord(_Section):
     """maps.json's ``eddy`` section: the eddy-current conductance of paper eq. (2).
 
     Attributes
@@ -148,31 +172,18 @@ class EddyRecord:
         Conductance [S] (A per V of dPsi/dt); None: not identified.
     source : str or None
         Where the value comes from (a fit, a refit by ``improve``).
-    extra : dict
-        Keys of the section this record does not know, kept for :meth:`as_dict`.
-    keys : tuple of str
-        The section's keys in the file's order.
+    extra, keys
+        What the section holds besides, and its order (:class:`_Section`).
     """
 
     G_eddy_S: float | None = None
     source: str | None = None
-    extra: dict = field(default_factory=dict, compare=False, repr=False)
-    keys: tuple = field(default=(), compare=False, repr=False)
     always = ("G_eddy_S",)  # the file format requires the key, null when not identified
 
-    @classmethod
-    def from_dict(cls, raw, where: str = "maps") -> EddyRecord:
-        """The record of a parsed ``eddy`` section (None: not identified); ModelMapsError naming ``where``,
-        the file and the key when ``G_eddy_S`` is not null or a number >= 0 (:func:`eddy_problems`)."""
-        _refuse(where, eddy_problems(raw, complete=False))
-        if raw is None:
-            return cls()
-        known, extra, keys = _split(cls, raw)
-        return cls(**known, extra=extra, keys=keys)
-
-    def as_dict(self) -> dict:
-        """The section as maps.json holds it (see the module docstring)."""
-        return _as_dict(self)
+    @staticmethod
+    def problems(raw) -> list[str]:
+        """:func:`eddy_problems`, the section or key may be missing."""
+        return eddy_problems(raw, complete=False)
 
 
 @dataclass(frozen=True)
