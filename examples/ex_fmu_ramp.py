@@ -53,8 +53,7 @@ def run(maps_dir="maps/ps45-literature", out_dir="build/ex_fmu_ramp", show_plot=
     out_dir.mkdir(parents=True, exist_ok=True)
     tab = load_tables(maps_dir)
     fmu = build_fmu(maps_dir, out_dir / f"{maps_dir.name}.fmu")
-    coil = tab.meta.get("coil") or {}
-    i_peak = float(coil.get("max_current_A") or 1.0)
+    i_peak = float(tab.coil.max_current_A or 1.0)
     x_m = 0.5 * (tab.x_min_m + tab.x_max_m)
     t_rise = i_peak / RATE_A_PER_S
     t_end = 2.0 * t_rise + HOLD_S

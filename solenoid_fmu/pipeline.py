@@ -344,7 +344,7 @@ def _second_round_heating(res, ident) -> dict | None:
     if ident.extra.get("resistance_tracks_used"):
         return None
     if "heating" in res.effects_added:
-        return res.tables.meta["effects"]["heating"]
+        return res.tables.effects.heating
     tried = next((st.params for st in res.steps if st.effect == "heating" and st.params), None)
     if tried is not None and res.diagnoses[-1]["verdict"] == "material":
         return tried

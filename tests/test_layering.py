@@ -274,3 +274,12 @@ def test_the_size_rules_catch_a_long_function(tmp_path):
     f = tmp_path / "probe.py"
     f.write_text("def ok():\n" + "    x = 1\n" * 79 + "\n\ndef too_long():\n" + "    x = 1\n" * 80, encoding="utf-8")
     assert _long_functions(f, 80) == ["probe.py:too_long (81 lines)"]
+
+
+def test_the_realtime_facade_exports_the_whole_model():
+    """``realtime`` re-exports ``realtime.model``'s public names by a star import; its ``__all__`` (a literal,
+    read above) names every one of them and nothing it does not define."""
+    import solenoid_fmu.realtime as realtime
+
+    assert set(realtime.model.__all__) <= set(realtime.__all__)
+    assert all(hasattr(realtime, name) for name in realtime.__all__)

@@ -47,3 +47,27 @@ def test_a_recordings_own_closures_overrule_a_header_a_little_off(header_off):
     pts, _, _ = flux_points([rec], 6, choose_currents)
     err = max(abs(p.value / _psi(p.i_A) - 1.0) for p in pts if p.i_A > 0.3)
     assert err < 2e-3, err  # with the header R uncorrected: ~1 % of the peak per cycle
+
+
+@pytest.mark.parametrize("header_off", [0.0, 1e-3])
+def test_the_track_says_when_its_own_data_overrule_the_header(header_off, tmp_path, capsys):
+    """The rule lives in measure (``ResistanceTrack.header_overruled``, ``HEADER_OFF_SIGMAS``): the same
+    verdict as the identification's choice, and ``solenoid-fmu flux --json`` reports it."""
+    import json
+
+    from solenoid_fmu import measure
+    from solenoid_fmu.cli import main
+    from solenoid_fmu.measure import write_recording
+
+    rec = _triangles(R_TRUE * (1.0 + header_off))
+    camp, use_tracks, _ = resistance_choice([rec])
+    tr = camp.track_for(rec)
+    assert measure.HEADER_OFF_SIGMAS == HEADER_OFF_SIGMAS
+    assert tr.header_overruled == use_tracks == (header_off > 0)
+    assert tr.summary()["header_overruled"] == tr.header_overruled
+    assert tr.header_off_sigmas == pytest.approx(abs(tr.header_R_ohm - tr.R0_ohm) / tr.R0_sigma_ohm)
+    path = write_recording(tmp_path / "flux.csv", rec)
+    assert main(["flux", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["header_resistance_overruled"] is (header_off > 0)
+    assert not out["header_resistance_disagrees"]

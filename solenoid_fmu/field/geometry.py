@@ -231,122 +231,25 @@ def _unknown_keys(data: dict) -> list[str]:
 
 
 def _from_dict(data: dict, path: Path, require_moving: bool = True) -> tuple[Geometry | None, list[str]]:
+    """The geometry of a parsed geometry file and every problem found (None with problems), in the file's
+    order: unknown keys, units, the regions, [coil], [stroke], [domain], the moving region."""
     problems: list[str] = _unknown_keys(data)
     units = data.get("units", "mm")
     if units != "mm":
         problems.append(f"units must be \"mm\", got {units!r}")
-    regions: list[Region] = []
     raw_regions = data.get("region", [])
     if not isinstance(raw_regions, list) or not raw_regions:
         problems.append("no [[region]] entries")
         raw_regions = []
+    regions: list[Region] = []
     seen: set[str] = set()
     for k, reg in enumerate(raw_regions):
-        where = f"region #{k + 1}"
-        name = reg.get("name")
-        if not isinstance(name, str) or not name:
-            problems.append(f"{where}: missing 'name'")
-            continue
-        where = f"region '{name}'"
-        if name in seen:
-            problems.append(f"{where}: duplicate region name")
-        seen.add(name)
-        material = reg.get("material")
-        if material not in NONMAGNETIC | MAGNETIC:
-            problems.append(
-                f"{where}: unknown material {material!r} (use 'steel' or one of {sorted(NONMAGNETIC)})"
-            )
-            continue
-        poly = reg.get("polygon")
-        try:
-            arr = np.array(poly, dtype=float)
-        except (TypeError, ValueError):
-            arr = None
-        if arr is None or arr.ndim != 2 or arr.shape[1] != 2:
-            problems.append(f"{where}: 'polygon' must be a list of [r, z] pairs in mm")
-            continue
-        if not np.all(np.isfinite(arr)):
-            problems.append(f"{where}: polygon has non-finite coordinates")
-            continue
-        if len(arr) > 1 and np.allclose(arr[0], arr[-1]):
-            arr = arr[:-1]  # an explicitly closed polygon is accepted
-        if len(arr) < 3:
-            problems.append(f"{where}: open polygon: needs at least 3 distinct vertices, has {len(arr)}")
-            continue
-        at = reg.get("ampere_turns", 0.0)
-        moves = reg.get("moves", False)
-        if not isinstance(moves, bool):
-            problems.append(f"{where}: 'moves' must be true or false (a TOML boolean, no quotes), got {moves!r}")
-            continue
-        if isinstance(at, bool) or not isinstance(at, int | float) or not np.isfinite(at):
-            problems.append(f"{where}: 'ampere_turns' must be a finite number, got {at!r}")
-            continue
-        regions.append(
-            Region(
-                name=name,
-                material=material,
-                polygon_m=tuple((float(r) * MM, float(z) * MM) for r, z in arr),
-                moves=moves,
-                ampere_turns=float(at),
-            )
-        )
-    coil_t = data.get("coil")
-    coil = None
-    if not isinstance(coil_t, dict):
-        problems.append("no [coil] table")
-    else:
-        region = coil_t.get("region")
-        turns = _num(coil_t, "turns", "[coil]", problems)
-        res = _num(coil_t, "resistance_ohm_20C", "[coil]", problems)
-        alpha = _num(coil_t, "temperature_coefficient_per_K", "[coil]", problems, COPPER_ALPHA_PER_K)
-        imax = _num(coil_t, "max_current_A", "[coil]", problems, 1.0)
-        if not isinstance(region, str):
-            problems.append("[coil]: missing 'region'")
-        elif region not in seen:
-            problems.append(f"[coil]: region '{region}' is not defined")
-        if turns is not None and turns <= 0:
-            problems.append(f"[coil]: turns must be > 0, got {turns:g}")
-        if res is not None and res <= 0:
-            problems.append(f"[coil]: resistance_ohm_20C must be > 0, got {res:g}")
-        if imax is not None and imax <= 0:
-            problems.append(f"[coil]: max_current_A must be > 0, got {imax:g}")
-        if None not in (turns, res, alpha, imax) and isinstance(region, str):
-            coil = Coil(region, turns, res, alpha, imax)
-    st = data.get("stroke")
-    stroke = None
-    if not isinstance(st, dict):
-        problems.append("no [stroke] table")
-    else:
-        vals = [_num(st, k, "[stroke]", problems) for k in ("min_mm", "max_mm")]
-        wmin = _num(st, "working_min_mm", "[stroke]", problems, vals[0])
-        wmax = _num(st, "working_max_mm", "[stroke]", problems, vals[1])
-        if None not in vals and None not in (wmin, wmax):
-            lo, hi = vals
-            if not lo < hi:
-                problems.append(f"[stroke]: min_mm ({lo:g}) must be below max_mm ({hi:g})")
-            if lo < 0:
-                problems.append(f"[stroke]: min_mm must be >= 0 (a working gap), got {lo:g}")
-            if not lo <= wmin < wmax <= hi:
-                problems.append(
-                    f"[stroke]: need min_mm <= working_min_mm < working_max_mm <= max_mm, "
-                    f"got {lo:g}, {wmin:g}, {wmax:g}, {hi:g}"
-                )
-            stroke = Stroke(lo * MM, hi * MM, wmin * MM, wmax * MM)
-    dom = data.get("domain")
-    domain = None
-    if not isinstance(dom, dict):
-        problems.append("no [domain] table")
-    else:
-        vals = [_num(dom, k, "[domain]", problems) for k in ("r_max_mm", "z_min_mm", "z_max_mm")]
-        natural = tuple(dom.get("natural", ()))
-        bad = [s for s in natural if s not in SIDES]
-        if bad:
-            problems.append(f"[domain]: unknown natural side(s) {bad}; use {sorted(SIDES)}")
-        if None not in vals:
-            rmax, zmin, zmax = vals
-            if rmax <= 0 or zmin >= zmax:
-                problems.append(f"[domain]: empty air box r_max={rmax:g}, z from {zmin:g} to {zmax:g}")
-            domain = Domain(rmax * MM, zmin * MM, zmax * MM, natural)
+        region = _region(reg, k, seen, problems)
+        if region is not None:
+            regions.append(region)
+    coil = _coil(data.get("coil"), seen, problems)
+    stroke = _stroke(data.get("stroke"), problems)
+    domain = _domain(data.get("domain"), problems)
     n_moving = sum(r.moves for r in regions)
     if regions and (n_moving > 1 or (require_moving and n_moving == 0)):
         problems.append(f"exactly one region must have 'moves = true' (the armature), found {n_moving}"
@@ -362,6 +265,122 @@ def _from_dict(data: dict, path: Path, require_moving: bool = True) -> tuple[Geo
         source_path=None,
     )
     return geom, problems
+
+
+def _region(reg: dict, k: int, seen: set, problems: list[str]) -> Region | None:
+    """Region ``k`` (0-based) of the file, its name added to ``seen``; None with its problem appended."""
+    where = f"region #{k + 1}"
+    name = reg.get("name")
+    if not isinstance(name, str) or not name:
+        problems.append(f"{where}: missing 'name'")
+        return None
+    where = f"region '{name}'"
+    if name in seen:
+        problems.append(f"{where}: duplicate region name")
+    seen.add(name)
+    material = reg.get("material")
+    if material not in NONMAGNETIC | MAGNETIC:
+        problems.append(
+            f"{where}: unknown material {material!r} (use 'steel' or one of {sorted(NONMAGNETIC)})"
+        )
+        return None
+    poly = reg.get("polygon")
+    try:
+        arr = np.array(poly, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.ndim != 2 or arr.shape[1] != 2:
+        problems.append(f"{where}: 'polygon' must be a list of [r, z] pairs in mm")
+        return None
+    if not np.all(np.isfinite(arr)):
+        problems.append(f"{where}: polygon has non-finite coordinates")
+        return None
+    if len(arr) > 1 and np.allclose(arr[0], arr[-1]):
+        arr = arr[:-1]  # an explicitly closed polygon is accepted
+    if len(arr) < 3:
+        problems.append(f"{where}: open polygon: needs at least 3 distinct vertices, has {len(arr)}")
+        return None
+    at = reg.get("ampere_turns", 0.0)
+    moves = reg.get("moves", False)
+    if not isinstance(moves, bool):
+        problems.append(f"{where}: 'moves' must be true or false (a TOML boolean, no quotes), got {moves!r}")
+        return None
+    if isinstance(at, bool) or not isinstance(at, int | float) or not np.isfinite(at):
+        problems.append(f"{where}: 'ampere_turns' must be a finite number, got {at!r}")
+        return None
+    return Region(
+        name=name,
+        material=material,
+        polygon_m=tuple((float(r) * MM, float(z) * MM) for r, z in arr),
+        moves=moves,
+        ampere_turns=float(at),
+    )
+
+
+def _coil(coil_t, seen: set, problems: list[str]) -> Coil | None:
+    """The [coil] table (its region among the names in ``seen``); None with its problems appended."""
+    if not isinstance(coil_t, dict):
+        problems.append("no [coil] table")
+        return None
+    region = coil_t.get("region")
+    turns = _num(coil_t, "turns", "[coil]", problems)
+    res = _num(coil_t, "resistance_ohm_20C", "[coil]", problems)
+    alpha = _num(coil_t, "temperature_coefficient_per_K", "[coil]", problems, COPPER_ALPHA_PER_K)
+    imax = _num(coil_t, "max_current_A", "[coil]", problems, 1.0)
+    if not isinstance(region, str):
+        problems.append("[coil]: missing 'region'")
+    elif region not in seen:
+        problems.append(f"[coil]: region '{region}' is not defined")
+    if turns is not None and turns <= 0:
+        problems.append(f"[coil]: turns must be > 0, got {turns:g}")
+    if res is not None and res <= 0:
+        problems.append(f"[coil]: resistance_ohm_20C must be > 0, got {res:g}")
+    if imax is not None and imax <= 0:
+        problems.append(f"[coil]: max_current_A must be > 0, got {imax:g}")
+    if None not in (turns, res, alpha, imax) and isinstance(region, str):
+        return Coil(region, turns, res, alpha, imax)
+    return None
+
+
+def _stroke(st, problems: list[str]) -> Stroke | None:
+    """The [stroke] table in m; None with its problems appended."""
+    if not isinstance(st, dict):
+        problems.append("no [stroke] table")
+        return None
+    vals = [_num(st, k, "[stroke]", problems) for k in ("min_mm", "max_mm")]
+    wmin = _num(st, "working_min_mm", "[stroke]", problems, vals[0])
+    wmax = _num(st, "working_max_mm", "[stroke]", problems, vals[1])
+    if None in vals or None in (wmin, wmax):
+        return None
+    lo, hi = vals
+    if not lo < hi:
+        problems.append(f"[stroke]: min_mm ({lo:g}) must be below max_mm ({hi:g})")
+    if lo < 0:
+        problems.append(f"[stroke]: min_mm must be >= 0 (a working gap), got {lo:g}")
+    if not lo <= wmin < wmax <= hi:
+        problems.append(
+            f"[stroke]: need min_mm <= working_min_mm < working_max_mm <= max_mm, "
+            f"got {lo:g}, {wmin:g}, {wmax:g}, {hi:g}"
+        )
+    return Stroke(lo * MM, hi * MM, wmin * MM, wmax * MM)
+
+
+def _domain(dom, problems: list[str]) -> Domain | None:
+    """The [domain] table (the air box) in m; None with its problems appended."""
+    if not isinstance(dom, dict):
+        problems.append("no [domain] table")
+        return None
+    vals = [_num(dom, k, "[domain]", problems) for k in ("r_max_mm", "z_min_mm", "z_max_mm")]
+    natural = tuple(dom.get("natural", ()))
+    bad = [s for s in natural if s not in SIDES]
+    if bad:
+        problems.append(f"[domain]: unknown natural side(s) {bad}; use {sorted(SIDES)}")
+    if None in vals:
+        return None
+    rmax, zmin, zmax = vals
+    if rmax <= 0 or zmin >= zmax:
+        problems.append(f"[domain]: empty air box r_max={rmax:g}, z from {zmin:g} to {zmax:g}")
+    return Domain(rmax * MM, zmin * MM, zmax * MM, natural)
 
 
 def check_geometry(geom: Geometry) -> list[str]:

@@ -31,23 +31,8 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import FmuBuildError
-from ..realtime import (
-    DEFAULT_PARAMS,
-    DRIVE_CURRENT,
-    DRIVE_VOLTAGE,
-    EFFECT_NAMES,
-    EFFECT_STATE_NAMES,
-    MAX_SUBSTEPS,
-    NEWTON_MAX_ITER,
-    NEWTON_TOL_REL,
-    ROS2_GAMMA,
-    STATE_LAYOUT,
-    STATE_NAMES,
-    MapTables,
-    ModelError,
-    SolenoidModel,
-    effects_data,
-)
+from ..realtime import STATE_LAYOUT, STATE_NAMES, MapTables, ModelError, SolenoidModel, effects_data
+from ..realtime import model as M
 from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES
 
 __all__ = [
@@ -154,7 +139,7 @@ def _effects_header(tables: MapTables, params: dict) -> str:
         **{key: (params[key],) for key in fx_reals}})
     lines = [
         "/* effect sub-models (maps.json effects; model.py effects_data, SolenoidModel._step_fx) */",
-        f"#define SOL_HAS_FX {_c_bool(tables.meta.get('effects'))}   /* the FMU has the effect variables */",
+        f"#define SOL_HAS_FX {_c_bool(tables.effects.named)}   /* the FMU has the effect variables */",
         f"#define SOL_FX_HYST {_c_bool('hysteresis' in fx)}",
         f"#define SOL_FX_LAD {_c_bool('eddy_ladder' in fx)}",
         f"#define SOL_FX_HEAT {_c_bool('heating' in fx)}",
@@ -195,7 +180,7 @@ def _c_enum(prefix: str, names, last: str | None = None, first: int = 0) -> str:
 def _param_types() -> dict:
     """FMI type of every model parameter (``DEFAULT_PARAMS``), from the interface table."""
     types = {v.name: v.type for v in VARIABLES + EFFECT_VARIABLES if v.causality == "parameter"}
-    missing = [name for name in DEFAULT_PARAMS if name not in types]
+    missing = [name for name in M.DEFAULT_PARAMS if name not in types]
     if missing:
         raise FmuBuildError(f"model.py parameters {', '.join(missing)} are not FMU variables: add them to "
                             "solenoid_fmu/fmu/interface.py and port them to solenoid_fmu/fmu/c/solenoid_fmu.c")
@@ -214,23 +199,23 @@ def model_header() -> str:
 #define SOLENOID_MODEL_H
 
 /* model.py constants */
-#define ROS2_GAMMA {_c_double(ROS2_GAMMA)}
-#define NEWTON_MAX_ITER {int(NEWTON_MAX_ITER)}
-#define NEWTON_TOL_REL {_c_double(NEWTON_TOL_REL)}
-#define DRIVE_VOLTAGE {int(DRIVE_VOLTAGE)}
-#define DRIVE_CURRENT {int(DRIVE_CURRENT)}
+#define ROS2_GAMMA {_c_double(M.ROS2_GAMMA)}
+#define NEWTON_MAX_ITER {int(M.NEWTON_MAX_ITER)}
+#define NEWTON_TOL_REL {_c_double(M.NEWTON_TOL_REL)}
+#define DRIVE_VOLTAGE {int(M.DRIVE_VOLTAGE)}
+#define DRIVE_CURRENT {int(M.DRIVE_CURRENT)}
 /* Bound of the work of one fmi2DoStep: ceil(h / h_sub_max_s) sub-steps at most (else fmi2Error). */
-#define MAX_SUBSTEPS {_c_double(MAX_SUBSTEPS)}
+#define MAX_SUBSTEPS {_c_double(M.MAX_SUBSTEPS)}
 
 /* The state vector of model.py (STATE_NAMES, STATE_LAYOUT). */
 #define STATE_LAYOUT {int(STATE_LAYOUT)}
 {_c_enum("ST_", STATE_NAMES, "N_STATE")}
 /* Effect states (model.py EFFECT_STATE_NAMES, then ladder_k, then play_k), kept in Core.fx. */
-{_c_enum("FX_", EFFECT_STATE_NAMES, "FX_LAD")}
+{_c_enum("FX_", M.EFFECT_STATE_NAMES, "FX_LAD")}
 /* model.py DEFAULT_PARAMS and EFFECT_NAMES: how many (solenoid_fmu.c says which it implements) */
-#define SOL_N_PARAMS {len(DEFAULT_PARAMS)}
-#define SOL_N_EFFECTS {len(EFFECT_NAMES)}
-#define SOL_N_EFFECT_STATES {len(EFFECT_STATE_NAMES)}
+#define SOL_N_PARAMS {len(M.DEFAULT_PARAMS)}
+#define SOL_N_EFFECTS {len(M.EFFECT_NAMES)}
+#define SOL_N_EFFECT_STATES {len(M.EFFECT_STATE_NAMES)}
 
 /* Value references (interface.py: VARIABLES, then EFFECT_VARIABLES when the maps carry effects). */
 {_c_enum("VR_", vr_base + vr_fx)}#define SOL_N_VR {len(vr_base)}
@@ -243,9 +228,9 @@ def model_header() -> str:
 #: What solenoid_fmu.c declares it implements (``#define IMPLEMENTS_<KEY> <n>``) and model.py's value.
 _IMPLEMENTS = {
     "STATE_LAYOUT": lambda: int(STATE_LAYOUT),
-    "N_PARAMS": lambda: len(DEFAULT_PARAMS),
-    "N_EFFECTS": lambda: len(EFFECT_NAMES),
-    "N_EFFECT_STATES": lambda: len(EFFECT_STATE_NAMES),
+    "N_PARAMS": lambda: len(M.DEFAULT_PARAMS),
+    "N_EFFECTS": lambda: len(M.EFFECT_NAMES),
+    "N_EFFECT_STATES": lambda: len(M.EFFECT_STATE_NAMES),
 }
 
 
@@ -267,7 +252,7 @@ def check_implemented(source: str | None = None) -> None:
     if diff:
         raise FmuBuildError(
             f"the native backend implements another model than solenoid_fmu/realtime/model.py ({'; '.join(diff)}; "
-            f"model states {', '.join(STATE_NAMES)}; parameters {', '.join(DEFAULT_PARAMS)}). Port the new "
+            f"model states {', '.join(STATE_NAMES)}; parameters {', '.join(M.DEFAULT_PARAMS)}). Port the new "
             "effects to solenoid_fmu/fmu/c/solenoid_fmu.c (struct Core, sol_step, the IMPLEMENTS_* lines), or "
             "export with --backend python")
     _param_types()
@@ -285,11 +270,11 @@ def _param_defaults(tables: MapTables, params: dict) -> str:
     """``SOL_<NAME>_DEFAULT`` of every model parameter: a double, or a macro for Integer and Boolean."""
     types = _param_types()
     fx = {v.name for v in EFFECT_VARIABLES}
-    for where, names in ((tables.where, [n for n in DEFAULT_PARAMS if n not in fx]),
-                         (f"{tables.where}: maps.json effects", [n for n in DEFAULT_PARAMS if n in fx])):
+    for where, names in ((tables.where, [n for n in M.DEFAULT_PARAMS if n not in fx]),
+                         (f"{tables.where}: maps.json effects", [n for n in M.DEFAULT_PARAMS if n in fx])):
         _refuse_non_finite(where, {n: (params[n],) for n in names if types[n] == "Real"})
     lines = ["/* parameter defaults for these maps (model.py DEFAULT_PARAMS, SolenoidModel(tables).params) */"]
-    for name in DEFAULT_PARAMS:
+    for name in M.DEFAULT_PARAMS:
         if types[name] == "Real":
             lines.append(f"static const double {_c_name('SOL_', name)}_DEFAULT = {_c_double(params[name])};")
         elif types[name] == "Boolean":
@@ -311,7 +296,7 @@ def maps_header(tables: MapTables, params: dict, guid: str) -> str:
         "dpsi_Wb": (tables.dpsi_Wb,), "psi_max_Wb": (tables.psi_max_Wb,), "i_fem_max_A": (tables.i_fem_max_A,)})
     effects = _effects_header(tables, params)
     defaults = _param_defaults(tables, params)
-    name = _c_comment_text(tables.meta.get("name", "maps"))
+    name = _c_comment_text("maps" if tables.name is None else tables.name)
     return f"""/* solenoid_maps.h: characteristic maps of '{name}' as C arrays.
  * Generated by solenoid_fmu.fmu.c_sources (solenoid-fmu {__version__}); do not edit.
  * SOL_CI / SOL_CF: for flux cell k and gap cell j (row k * (SOL_N_X - 1) + j) the cubic coefficients

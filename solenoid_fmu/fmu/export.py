@@ -95,14 +95,14 @@ def maps_payload(maps) -> tuple[dict, MapTables, str]:
     if isinstance(maps, CharacteristicMaps):
         npz, sidecar = encode_maps(maps)
         tables = maps_tables(maps)
-        return {MAPS_NPZ: npz, MAPS_JSON: sidecar}, tables, str(tables.meta.get("name") or "maps")
+        return {MAPS_NPZ: npz, MAPS_JSON: sidecar}, tables, str(tables.name or "maps")
     maps_dir = Path(maps)
     tables = load_maps_tables(maps_dir)
     try:
         files = {name: (maps_dir / name).read_bytes() for name in (MAPS_NPZ, MAPS_JSON)}
     except OSError as exc:
         raise MapsError(f"{maps_dir}: cannot be read: {exc.strerror}") from None
-    return files, tables, str(tables.meta.get("name") or maps_dir.name)
+    return files, tables, str(tables.name or maps_dir.name)
 
 
 def build_fmu(maps, dest_fmu, *, backend: str = "python", interface: str | None = None,

@@ -182,8 +182,7 @@ ME_VARIABLES = (
 def interface_for(tables: MapTables) -> tuple:
     """The FMU variables for these maps: :data:`VARIABLES`, plus :data:`EFFECT_VARIABLES` when
     maps.json carries an ``effects`` section."""
-    fx = tables.meta.get("effects") or {}
-    return VARIABLES + (EFFECT_VARIABLES if any(v for v in fx.values()) else ())
+    return VARIABLES + (EFFECT_VARIABLES if tables.effects.active else ())
 
 
 def start_values(tables: MapTables, params: dict) -> dict:
@@ -201,7 +200,7 @@ def me_variables(tables: MapTables) -> tuple:
     Without effects: :data:`ME_VARIABLES`. With effects, after ``psi_state_Wb``: one
     ``ladder_state_<k>_A`` per eddy-ladder section and ``T_state_K`` when the maps carry heating.
     """
-    fx = effects_data(tables) if tables.meta.get("effects") else {}
+    fx = effects_data(tables)
     states = [ME_VARIABLES[0]]
     for k in range(len((fx.get("eddy_ladder") or {}).get("G_S", ()))):
         states.append((f"ladder_state_{k}_A", "A", f"continuous state of model exchange: current of eddy-ladder "

@@ -69,6 +69,8 @@ class BackendDescription:
     step_error: str = "fmi2Discard"
 
 
+#: The maps.json keys the modelDescription's vendor annotation repeats (``<Maps>``, sorted JSON).
+_SIDECAR_KEYS = ("name", "force_method", "coil", "eddy", "effects", "provenance")
 #: CoSimulation capability flags of every export.
 _CS_FLAGS = (("needsExecutionTool", "false"), ("canHandleVariableCommunicationStepSize", "true"),
              ("canInterpolateInputs", "false"), ("canBeInstantiatedOnlyOncePerProcess", "false"),
@@ -149,66 +151,17 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_files: dict,
     if md_bytes is None:
         raise FmuBuildError(f"{fmu_path}: no modelDescription.xml in the FMU")
     root = etree.fromstring(md_bytes, etree.XMLParser(remove_blank_text=True))
-    meta = tables.meta
-    maps_name = str(meta.get("name") or maps_name)
-    prov = meta.get("provenance") or {}
-    geo = prov.get("geometry") or {}
+    maps_name = str(tables.name or maps_name)
     sha_npz = hashlib.sha256(maps_files["maps.npz"]).hexdigest()
     sha_json = hashlib.sha256(maps_files["maps.json"]).hexdigest()
-    now = datetime.datetime.now(datetime.UTC).replace(microsecond=0)
-
-    # -- root attributes --------------------------------------------------------------------
-    root.set("modelName", model_name or f"solenoid {maps_name}")
-    root.set("description",
-             f"Valve solenoid real-time lumped model (paper eqs. 1-3: U = R i + dPsi/dt, "
-             f"i = i_f(Psi, x) + G_eddy dPsi/dt, F = F(Psi, x)) from the characteristic maps "
-             f"'{maps_name}' (maps.npz sha256 {sha_npz}; geometry {geo.get('name', '?')} "
-             f"sha256 {geo.get('sha256', '?')}; maps created {prov.get('created_utc', '?')}, "
-             f"code {prov.get('code_version', '?')}). Gap range {tables.x_min_m:.6g} .. "
-             f"{tables.x_max_m:.6g} m, |Psi| <= {tables.psi_max_Wb:.6g} Wb.")
-    root.set("generationTool", generation_tool)
-    root.set("generationDateAndTime", now.strftime("%Y-%m-%dT%H:%M:%SZ"))
-    root.set("version", __version__)
-    root.set("author", "solenoid-fmu")
-    root.set("variableNamingConvention", "structured")
-
+    _set_root_attributes(root, tables, maps_name, sha_npz, model_name, generation_tool)
     children = {child.tag: child for child in root}
-    cs = children.get("CoSimulation")
-    if cs is None:
-        raise FmuBuildError(f"{fmu_path}: modelDescription.xml has no CoSimulation element")
-    for key, value in (*_CS_FLAGS, *backend.cs_attributes.items()):
-        cs.set(key, value)
-    me = None
-    if backend.model_exchange:
-        me = etree.Element("ModelExchange", modelIdentifier=MODEL_IDENTIFIER, **dict(_ME_FLAGS))
-    for el in (me, cs):
-        if el is not None and backend.source_files:
-            for child in el.findall("SourceFiles"):
-                el.remove(child)
-            files = etree.SubElement(el, "SourceFiles")
-            for name in backend.source_files:
-                etree.SubElement(files, "File", name=name)
-
+    me, cs = _capabilities(fmu_path, children.get("CoSimulation"), backend)
     locals_ = me_variables(tables) if backend.model_exchange else ()
-    units = etree.Element("UnitDefinitions")
-    for name, exps in (*UNIT_DEFINITIONS.items(),
-                       *((n, e) for n, e in ME_UNIT_DEFINITIONS.items() if any(u == n for _, u, _ in locals_))):
-        u = etree.SubElement(units, "Unit", name=name)
-        etree.SubElement(u, "BaseUnit", **{k: str(v) for k, v in exps.items()})
-        for dname, factor in DISPLAY_UNITS.get(name, ()):
-            etree.SubElement(u, "DisplayUnit", name=dname, factor=_fmt(factor))
-
+    units = _unit_definitions(locals_)
     log_categories = children.get("LogCategories")
     experiment = etree.Element("DefaultExperiment", **DEFAULT_EXPERIMENT)
-
-    vendor = etree.Element("VendorAnnotations")
-    tool = etree.SubElement(vendor, "Tool", name="solenoid-fmu")
-    maps_el = etree.SubElement(tool, "Maps", name=maps_name, npz_sha256=sha_npz, json_sha256=sha_json,
-                               psi_max_Wb=_fmt(tables.psi_max_Wb), x_min_m=_fmt(tables.x_min_m),
-                               x_max_m=_fmt(tables.x_max_m), n_psi=str(tables.n_psi), n_x=str(tables.n_x))
-    sidecar = {k: meta.get(k) for k in ("name", "force_method", "coil", "eddy", "effects", "provenance")
-               if k in meta}
-    maps_el.text = json.dumps(sidecar, sort_keys=True)
+    vendor = _vendor_annotations(tables, maps_name, sha_npz, sha_json)
 
     variables = children.get("ModelVariables")
     interface = interface_for(tables)
@@ -225,6 +178,70 @@ def finalize_model_description(fmu_path, *, tables: MapTables, maps_files: dict,
     xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
     doc = documentation_html(root.get("modelName"), root.get("description"), tables, backend)
     rewrite_fmu(fmu_path, {"modelDescription.xml": xml, "documentation/index.html": doc.encode("utf-8")})
+
+
+def _set_root_attributes(root, tables: MapTables, maps_name: str, sha_npz: str, model_name: str | None,
+                         generation_tool: str) -> None:
+    """The root's attributes: model name, the description with the maps' provenance, tool, UTC date, version."""
+    prov = tables.provenance
+    geo = prov.get("geometry") or {}
+    now = datetime.datetime.now(datetime.UTC).replace(microsecond=0)
+    root.set("modelName", model_name or f"solenoid {maps_name}")
+    root.set("description",
+             f"Valve solenoid real-time lumped model (paper eqs. 1-3: U = R i + dPsi/dt, "
+             f"i = i_f(Psi, x) + G_eddy dPsi/dt, F = F(Psi, x)) from the characteristic maps "
+             f"'{maps_name}' (maps.npz sha256 {sha_npz}; geometry {geo.get('name', '?')} "
+             f"sha256 {geo.get('sha256', '?')}; maps created {prov.get('created_utc', '?')}, "
+             f"code {prov.get('code_version', '?')}). Gap range {tables.x_min_m:.6g} .. "
+             f"{tables.x_max_m:.6g} m, |Psi| <= {tables.psi_max_Wb:.6g} Wb.")
+    root.set("generationTool", generation_tool)
+    root.set("generationDateAndTime", now.strftime("%Y-%m-%dT%H:%M:%SZ"))
+    root.set("version", __version__)
+    root.set("author", "solenoid-fmu")
+    root.set("variableNamingConvention", "structured")
+
+
+def _capabilities(fmu_path: Path, cs, backend: BackendDescription) -> tuple:
+    """(ModelExchange or None, CoSimulation): the capability flags and the backend's source files."""
+    if cs is None:
+        raise FmuBuildError(f"{fmu_path}: modelDescription.xml has no CoSimulation element")
+    for key, value in (*_CS_FLAGS, *backend.cs_attributes.items()):
+        cs.set(key, value)
+    me = None
+    if backend.model_exchange:
+        me = etree.Element("ModelExchange", modelIdentifier=MODEL_IDENTIFIER, **dict(_ME_FLAGS))
+    for el in (me, cs):
+        if el is not None and backend.source_files:
+            for child in el.findall("SourceFiles"):
+                el.remove(child)
+            files = etree.SubElement(el, "SourceFiles")
+            for name in backend.source_files:
+                etree.SubElement(files, "File", name=name)
+    return me, cs
+
+
+def _unit_definitions(locals_) -> etree._Element:
+    """``UnitDefinitions``: the interface's units and those of the model-exchange locals, with display units."""
+    units = etree.Element("UnitDefinitions")
+    for name, exps in (*UNIT_DEFINITIONS.items(),
+                       *((n, e) for n, e in ME_UNIT_DEFINITIONS.items() if any(u == n for _, u, _ in locals_))):
+        u = etree.SubElement(units, "Unit", name=name)
+        etree.SubElement(u, "BaseUnit", **{k: str(v) for k, v in exps.items()})
+        for dname, factor in DISPLAY_UNITS.get(name, ()):
+            etree.SubElement(u, "DisplayUnit", name=dname, factor=_fmt(factor))
+    return units
+
+
+def _vendor_annotations(tables: MapTables, maps_name: str, sha_npz: str, sha_json: str) -> etree._Element:
+    """``VendorAnnotations``: the maps' name, hashes, ranges and their sidecar (sorted JSON)."""
+    vendor = etree.Element("VendorAnnotations")
+    tool = etree.SubElement(vendor, "Tool", name="solenoid-fmu")
+    maps_el = etree.SubElement(tool, "Maps", name=maps_name, npz_sha256=sha_npz, json_sha256=sha_json,
+                               psi_max_Wb=_fmt(tables.psi_max_Wb), x_min_m=_fmt(tables.x_min_m),
+                               x_max_m=_fmt(tables.x_max_m), n_psi=str(tables.n_psi), n_x=str(tables.n_x))
+    sidecar = {k: v for k, v in tables.meta.items() if k in _SIDECAR_KEYS}
+    maps_el.text = json.dumps(sidecar, sort_keys=True)
+    return vendor
 
 
 def _write_variables(fmu_path: Path, variables, interface: tuple) -> None:

@@ -97,6 +97,48 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     from fmpy.fmi2 import FMU2Slave
 
     rec = recording if isinstance(recording, Recording) else read_recording(recording)
+    drive = _drive_of(rec, drive)
+    t, x, u, u_step = _drive_inputs(rec, drive)
+    R_ohm = rec.coil_resistance_ohm if R_ohm is None else R_ohm
+    fmu_path = Path(fmu_path)
+    md, vrs = _solenoid_model_description(fmu_path, params or {})
+    unzip = fmpy.extract(str(fmu_path))
+    messages: list[str] = []
+
+    def log(status, category, message):
+        messages.append(f"{_STATUS_NAMES.get(status, status)}: {message}")
+
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName="simulate")
+    out_names = [name for name in _OUTPUTS if name in vrs]
+    callbacks = fmi2_callbacks(log)
+    try:
+        fmu.instantiate(callbacks=callbacks, loggingOn=True)
+        try:
+            if Psi0_Wb is None:
+                Psi0_Wb = load_tables(Path(unzip) / "resources").psi_of_current(float(rec.current_A[0]), float(x[0]))
+            reals = {"Psi0_Wb": Psi0_Wb, "R_ohm": R_ohm, "G_eddy_S": G_eddy_S}
+            in_vr = _initialize(fmu, md, vrs, drive, float(t[0]), reals, params or {}, (float(u[0]), float(x[0])))
+            out = _run(fmu, in_vr, [vrs[k] for k in out_names], t, x, u_step)
+        except FMICallException as exc:
+            detail = "; ".join(messages[-5:]) or str(exc)
+            raise FmuInputError(f"{fmu_path} refused the recording {rec.label()}: {detail}") from None
+        finally:
+            fmu.freeInstance()
+    finally:
+        release_fmi2_callbacks(callbacks)
+        shutil.rmtree(unzip, ignore_errors=True)
+    return _simulated(rec, drive, u, out, out_names, f"{fmu_path.name} ({md.modelName})", messages)
+
+
+#: The outputs a simulation reads, in this order (the effect outputs when the FMU has them).
+_OUTPUTS = ("U_out_V", "i_out_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V", "i_hyst_A", "T_rise_K")
+#: FMI 2.0 status codes by name, for the log messages.
+_STATUS_NAMES = {0: "ok", 1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
+
+
+def _drive_of(rec, drive: str) -> str:
+    """``"voltage"`` or ``"current"``: the drive asked for, ``auto`` by the recording's kind (:data:`DRIVE_BY_KIND`)."""
     if drive == "auto":
         drive = DRIVE_BY_KIND.get(rec.kind, "current")
     if drive not in ("voltage", "current"):
@@ -104,11 +146,14 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     if drive == "voltage" and rec.voltage_V is None:
         raise FmuInputError(f"{rec.label()}: no voltage_V column to drive the model with; "
                             "use --drive current")
-    t, x, u, u_step = _drive_inputs(rec, drive)
-    if R_ohm is None:
-        R_ohm = rec.coil_resistance_ohm
+    return drive
 
-    fmu_path = Path(fmu_path)
+
+def _solenoid_model_description(fmu_path: Path, params: dict) -> tuple:
+    """(fmpy's model description, value reference by name) of a solenoid-fmu FMU with the parameters
+    ``params``; FmuInputError otherwise."""
+    import fmpy  # third-party FMI host, loaded only when an FMU runs
+
     if not fmu_path.is_file():
         raise FmuInputError(f"{fmu_path}: FMU file not found")
     try:
@@ -119,62 +164,44 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     missing = [v.name for v in VARIABLES if v.name not in vrs]
     if missing:
         raise FmuInputError(f"{fmu_path}: not a solenoid-fmu FMU (missing {', '.join(missing)})")
-    unzip = fmpy.extract(str(fmu_path))
-    messages: list[str] = []
-    status_names = {0: "ok", 1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
-
-    def log(status, category, message):
-        messages.append(f"{status_names.get(status, status)}: {message}")
-
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="simulate")
-    n = t.size
-    out_names = ["U_out_V", "i_out_A", "F_N", "psi_Wb", "i_eddy_A", "dpsi_dt_V"]
-    out_names += [name for name in ("i_hyst_A", "T_rise_K") if name in vrs]
-    out = np.empty((n, len(out_names)))
-    out_vr = [vrs[k] for k in out_names]
-    types = {v.name: v.type for v in md.modelVariables}
-    for name in params or {}:
+    for name in params:
         if name not in vrs or name in ("U_V", "i_A", "x_m", "drive_mode"):
             raise FmuInputError(f"{fmu_path}: no settable parameter {name!r} in this FMU")
-    callbacks = fmi2_callbacks(log)
-    try:
-        fmu.instantiate(callbacks=callbacks, loggingOn=True)
-        try:
-            if Psi0_Wb is None:
-                tab = load_tables(Path(unzip) / "resources")
-                Psi0_Wb = tab.psi_of_current(float(rec.current_A[0]), float(x[0]))
-            fmu.setupExperiment(startTime=float(t[0]))
-            fmu.enterInitializationMode()
-            fmu.setInteger([vrs["drive_mode"]],
-                           [DRIVE_VOLTAGE if drive == "voltage" else DRIVE_CURRENT])
-            reals = {"Psi0_Wb": Psi0_Wb, "R_ohm": R_ohm, "G_eddy_S": G_eddy_S}
-            for name, value in reals.items():
-                if value is not None:
-                    fmu.setReal([vrs[name]], [float(value)])
-            for name, value in (params or {}).items():
-                if types[name] == "Boolean":
-                    fmu.setBoolean([vrs[name]], [bool(value)])
-                else:
-                    fmu.setReal([vrs[name]], [float(value)])
-            in_vr = [vrs["U_V" if drive == "voltage" else "i_A"], vrs["x_m"]]
-            fmu.setReal(in_vr, [float(u[0]), float(x[0])])
-            fmu.exitInitializationMode()
-            out[0] = fmu.getReal(out_vr)
-            for k in range(n - 1):
-                fmu.setReal(in_vr, [float(u_step[k]), float(x[k + 1])])
-                fmu.doStep(float(t[k]), float(t[k + 1] - t[k]))
-                out[k + 1] = fmu.getReal(out_vr)
-            fmu.terminate()
-        except FMICallException as exc:
-            detail = "; ".join(messages[-5:]) or str(exc)
-            raise FmuInputError(f"{fmu_path} refused the recording {rec.label()}: {detail}") from None
-        finally:
-            fmu.freeInstance()
-    finally:
-        release_fmi2_callbacks(callbacks)
-        shutil.rmtree(unzip, ignore_errors=True)
-    return _simulated(rec, drive, u, out, out_names, f"{fmu_path.name} ({md.modelName})", messages)
+    return md, vrs
+
+
+def _initialize(fmu, md, vrs: dict, drive: str, t0: float, reals: dict, params: dict, inputs: tuple):
+    """Initialize the instantiated ``fmu`` at ``t0``: drive mode, the given reals (None: the FMU's default),
+    ``params`` and the first inputs (drive input, gap); returns the value references of the inputs."""
+    fmu.setupExperiment(startTime=t0)
+    fmu.enterInitializationMode()
+    fmu.setInteger([vrs["drive_mode"]], [DRIVE_VOLTAGE if drive == "voltage" else DRIVE_CURRENT])
+    for name, value in reals.items():
+        if value is not None:
+            fmu.setReal([vrs[name]], [float(value)])
+    types = {v.name: v.type for v in md.modelVariables}
+    for name, value in params.items():
+        if types[name] == "Boolean":
+            fmu.setBoolean([vrs[name]], [bool(value)])
+        else:
+            fmu.setReal([vrs[name]], [float(value)])
+    in_vr = [vrs["U_V" if drive == "voltage" else "i_A"], vrs["x_m"]]
+    fmu.setReal(in_vr, list(inputs))
+    fmu.exitInitializationMode()
+    return in_vr
+
+
+def _run(fmu, in_vr: list, out_vr: list, t, x, u_step) -> np.ndarray:
+    """The outputs after initialization and after each step (inputs held as :func:`simulate_recording` says)."""
+    n = t.size
+    out = np.empty((n, len(out_vr)))
+    out[0] = fmu.getReal(out_vr)
+    for k in range(n - 1):
+        fmu.setReal(in_vr, [float(u_step[k]), float(x[k + 1])])
+        fmu.doStep(float(t[k]), float(t[k + 1] - t[k]))
+        out[k + 1] = fmu.getReal(out_vr)
+    fmu.terminate()
+    return out
 
 
 def _drive_inputs(rec, drive: str):

@@ -46,7 +46,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..measure import flux_linkage
-from ..realtime import COPPER_ALPHA_PER_K, HysteresisError, MapTables, PlayHysteresis, fit_play_to_series
+from ..realtime import HysteresisError, MapTables, PlayHysteresis, fit_play_to_series
 from .residuals import recording_name
 from .signals import detrend, lowpass
 from .tables import ImproveError
@@ -199,7 +199,7 @@ def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[
 
 def g_eddy_source(tables, note: dict) -> str:
     """maps.json ``eddy.source`` for the G_eddy a kept ladder brings (its fit's ``note``)."""
-    old = (tables.meta.get("eddy") or {}).get("source") or "unknown"
+    old = tables.eddy.source or "unknown"
     was = note["G_eddy_S"]["maps"]
     was = "none" if was is None else f"{was:.6g} S"
     return (f"refit with the eddy ladder by improve on {', '.join(note['fitted_on'])} "
@@ -208,7 +208,7 @@ def g_eddy_source(tables, note: dict) -> str:
 
 def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
     """``C_th`` from the eq.-4 flux residual of current-driven recordings (see module docstring)."""
-    alpha = float(((tables.meta.get("coil") or {}).get("temperature_coefficient_per_K")) or COPPER_ALPHA_PER_K)
+    alpha = tables.coil.alpha_per_K
     num = den = 0.0
     used = []
     for c in cases:

@@ -20,7 +20,6 @@ from __future__ import annotations
 from ..errors import RecordingError
 from ..identification import KAPPA_SIGNIFICANT
 from ..measure import campaign_resistance
-from ..realtime import COPPER_ALPHA_PER_K
 from .residuals import recording_name
 
 #: Kinds of recording the heating rate is measured on (as the identification does).
@@ -57,8 +56,7 @@ def heating_from_resistance(recordings, tables) -> tuple[dict, dict] | None:
     kappa, sigma = float(camp.kappa_per_J), float(camp.kappa_sigma_per_J)
     if not (sigma > 0.0 and kappa > KAPPA_SIGNIFICANT * sigma):
         return None
-    coil = tables.meta.get("coil") or {}
-    alpha = float(coil.get("temperature_coefficient_per_K") or COPPER_ALPHA_PER_K)
+    alpha = tables.coil.alpha_per_K
     section = {"C_th_J_per_K": alpha / kappa, "R_th_K_per_W": R_TH_DEFAULT_K_PER_W, "alpha_per_K": alpha}
     note = {"from": "resistance tracks", "kappa_per_J": kappa, "kappa_sigma_per_J": sigma,
             "sigmas": kappa / sigma, "recordings": [recording_name(r) for r in flux]}

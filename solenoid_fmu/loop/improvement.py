@@ -197,7 +197,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
     run = _Run(recordings, fit_recs, {recording_name(r) for r in fit_recs}, {recording_name(r) for r in val_recs},
                flux_of, say)
-    effects = dict(tables.meta.get("effects") or {})
+    effects = tables.effects.as_dict()
     steps: list[Step] = []
     diagnoses: list = []
     tried: set = set()

@@ -8,12 +8,9 @@ equations are in :meth:`solenoid_fmu.realtime.model.SolenoidModel._step_fx`.
 from __future__ import annotations
 
 import dataclasses
-import json
 import tempfile
 import zipfile
 from pathlib import Path
-
-import numpy as np
 
 from ..errors import MapsError, SolenoidError
 from ..maps import CharacteristicMaps, load_maps, maps_tables
@@ -67,13 +64,7 @@ def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None
     fitted by :func:`solenoid_fmu.maps.fit_eddy`); ``G_eddy_source`` then says where the new value
     comes from and becomes ``eddy.source``, so the improved maps do not claim the old fit for it.
     """
-    meta = json.loads(json.dumps(tables.meta))
-    meta["effects"] = effects
-    if G_eddy_S is not None:
-        meta["eddy"] = dict(meta.get("eddy") or {}, G_eddy_S=float(G_eddy_S))
-        if G_eddy_source:
-            meta["eddy"]["source"] = G_eddy_source
-    t = tables.tables()
-    psi = np.arange(tables.n_psi) * tables.dpsi_Wb
-    return MapTables(psi, t["x_m"], t["i_f_A"], t["force_N"], extrapolated=tables.extrapolated, meta=meta,
-                     where=tables.where, i_fem_max_A=tables.i_fem_max_A)
+    if G_eddy_S is None:
+        return tables.with_meta(effects=effects)
+    eddy = dataclasses.replace(tables.eddy, G_eddy_S=float(G_eddy_S), source=G_eddy_source or tables.eddy.source)
+    return tables.with_meta(effects=effects, eddy=eddy)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import math
 import os
 import shutil
 from pathlib import Path
@@ -30,6 +29,8 @@ from ..realtime import (
     MAPS_SCHEMA_VERSION,
     MapTables,
     ModelMapsError,
+    coil_problems,
+    eddy_problems,
     maps_pair_consistent,
     read_maps_dir,
 )
@@ -207,24 +208,8 @@ def _meta_problems(meta: dict) -> list[str]:
         for name, unit in ARRAY_UNITS.items():
             if units.get(name) != unit:
                 problems.append(f"units of {name} must be {unit!r}, file says {units.get(name)!r}")
-    coil = meta.get("coil")
-    if not isinstance(coil, dict):
-        problems.append("'coil' must be an object")
-    else:
-        for key in ("turns", "resistance_ohm_20C", "temperature_coefficient_per_K", "max_current_A"):
-            v = coil.get(key)
-            if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
-                problems.append(f"coil.{key} must be a finite number, got {v!r}")
-            elif key != "temperature_coefficient_per_K" and v <= 0:
-                problems.append(f"coil.{key} must be > 0, got {v!r}")
-    eddy = meta.get("eddy")
-    if not isinstance(eddy, dict) or "G_eddy_S" not in eddy:
-        problems.append("'eddy' must be an object with 'G_eddy_S' (number or null)")
-    else:
-        g = eddy["G_eddy_S"]
-        if g is not None and (not isinstance(g, int | float) or isinstance(g, bool) or not math.isfinite(g)
-                              or g < 0):
-            problems.append(f"eddy.G_eddy_S must be null or a finite number >= 0 S, got {g!r}")
+    problems += coil_problems(meta.get("coil"))  # the rules of the typed records, every key required
+    problems += eddy_problems(meta.get("eddy"))
     if not isinstance(meta.get("provenance"), dict):
         problems.append("'provenance' must be an object")
     arrays = meta.get("arrays")

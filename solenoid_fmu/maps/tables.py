@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..errors import MapsError
+from ..realtime import EddyRecord, replace_meta
 
 __all__ = [
     "ARRAY_UNITS",
@@ -140,9 +141,8 @@ class CharacteristicMaps:
         """
         if G_eddy_S is not None and not (math.isfinite(G_eddy_S) and G_eddy_S >= 0):
             raise MapsError(f"G_eddy_S must be a finite value >= 0 S, got {G_eddy_S!r}")
-        meta = json.loads(json.dumps(self.metadata))
-        meta["eddy"] = {"G_eddy_S": None if G_eddy_S is None else float(G_eddy_S), "source": str(source)}
-        return dataclasses.replace(self, metadata=meta)
+        eddy = EddyRecord(G_eddy_S=None if G_eddy_S is None else float(G_eddy_S), source=str(source))
+        return dataclasses.replace(self, metadata=replace_meta(self.metadata, eddy=eddy))
 
 
 def problem_message(what: str, problems: list[str]) -> str:

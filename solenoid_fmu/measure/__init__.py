@@ -6,6 +6,7 @@ from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
 from .reader import read_recording, validate_recording
 from .resistance import (
+    HEADER_OFF_SIGMAS,
     CampaignResistance,
     ResistanceTrack,
     campaign_resistance,
@@ -15,6 +16,7 @@ from .resistance import (
 from .writer import write_recording
 
 __all__ = [
+    "HEADER_OFF_SIGMAS",
     "KINDS",
     "CampaignResistance",
     "CommutationCurve",

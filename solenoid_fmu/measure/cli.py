@@ -73,7 +73,9 @@ def _cmd_flux(args: argparse.Namespace) -> int:
               f"{tr.psi_peak_sigma_Wb * 1e3:.4g} mWb)")
         if tr.header_R_ohm is not None:
             print(f"header resistance: {tr.header_R_ohm:.4f} ohm"
-                  + (" (disagrees with the data, see the note)" if tr.header_disagrees else ""))
+                  + (" (disagrees with the data, see the note)" if tr.header_disagrees else "")
+                  + (f" (the recording's own data overrule it: {tr.header_off_sigmas:.0f} sigma off)"
+                     if tr.header_overruled else ""))
     print(f"offset removed: {res.offset_V * 1e3:.3f} mV (drift {res.offset_drift_V_per_s * 1e3:.4f} mV/s)")
     print(f"peak current: {res.peak_current_A:.4f} A")
     print(f"Psi at peak: {res.psi_at_peak_Wb * 1e3:.4f} mWb")

@@ -140,12 +140,13 @@ class FluxResult:
                 "kappa_sigma_per_J", "psi_at_peak_sigma_Wb")
         if tr is None:
             return {**dict.fromkeys(keys), "resistance_pinned": None, "resistance_constraints": [],
-                    "header_resistance_disagrees": None, "resistance_why_not_pinned": ""}
+                    "header_resistance_disagrees": None, "header_resistance_overruled": None,
+                    "resistance_why_not_pinned": ""}
         vals = (tr.R0_sigma_ohm, tr.R_end_ohm, tr.R_end_sigma_ohm, tr.kappa_per_J, tr.kappa_sigma_per_J,
                 tr.psi_peak_sigma_Wb)
         return {**{k: num(v) for k, v in zip(keys, vals, strict=True)}, "resistance_pinned": tr.pinned,
                 "resistance_constraints": list(tr.constraints), "header_resistance_disagrees": tr.header_disagrees,
-                "resistance_why_not_pinned": tr.why_not_pinned}
+                "header_resistance_overruled": tr.header_overruled, "resistance_why_not_pinned": tr.why_not_pinned}
 
 
 def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 101,
@@ -202,51 +203,10 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     if n_points < 3:
         raise RecordingError(rec.label(), [f"n_points must be >= 3, got {n_points}"])
     c = condition(rec)
-    t, i, n = c.t, rec.current_A, c.t.size
+    t = c.t
     notes = list(c.notes)
-    k_smooth, i_s, thr = c.k_smooth, c.i_s, c.thr
-    b, n_anchors, offset_se, offset = c.drift_V_per_s, c.n_anchors, c.offset_se_V, c.offset
-    uc, ic, i_off = c.uc, c.ic, c.current_offset_A
-
-    track = None
-    if isinstance(resistance, ResistanceTrack):
-        track = resistance
-        if track.label != rec.label() or track.R_t_ohm.size != t.size:
-            raise RecordingError(rec.label(), [f"the resistance track is of {track.label} "
-                                               f"({track.R_t_ohm.size} samples), not of this recording"])
-    elif resistance == "track":
-        track = resistance_track(rec, R_ohm)
-    elif resistance is not None:
-        raise RecordingError(rec.label(), [f"resistance must be None, 'track' or a ResistanceTrack, "
-                                           f"got {resistance!r}"])
-    if R_ohm is not None:
-        if not (math.isfinite(R_ohm) and R_ohm > 0):
-            raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
-        R, method = float(R_ohm), "given"
-    elif rec.coil_resistance_ohm is not None:
-        R, method = rec.coil_resistance_ohm, "header"
-    else:
-        R, method = None, None
-
-    if R is None and track is None:
-        plateau = c.plateau_mask()
-        closed = abs(float(i_s[-1] - i_s[0])) <= thr
-        R_est = math.nan
-        if plateau.any():
-            R_est = float(np.sum(uc[plateau] * ic[plateau]) / np.sum(ic[plateau] ** 2))
-            method = "plateau"
-        elif closed:
-            q_A_s = float(np.trapezoid(ic, t))
-            if abs(q_A_s) > 1e-12:
-                R_est = float(np.trapezoid(uc, t)) / q_A_s
-                method = "closure"
-                notes.append("resistance from flux closure (assumes Psi returns to its start value)")
-        if method is None or not (math.isfinite(R_est) and R_est > 0):
-            raise RecordingError(rec.label(), [
-                "no coil resistance: the header has no coil_resistance_ohm, the current has no plateau "
-                "to estimate it from, and the excitation does not return to its start "
-                "(give --resistance-ohm or add '# coil_resistance_ohm: ...')"])
-        R = R_est
+    track = _track_of(rec, resistance, R_ohm, t.size)
+    R, method = _constant_resistance(rec, c, R_ohm, notes, estimate=track is None)
 
     from scipy.integrate import cumulative_trapezoid  # heavy: see the module docstring
 
@@ -255,10 +215,70 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
         notes += track.notes
         if not track.pinned:
             notes.append(f"resistance track not pinned: {track.why_not_pinned}")
-    psi = cumulative_trapezoid(uc - (R * ic if track is None else track.R_t_ohm * ic), t, initial=0.0)
-    offset_mean = float(np.trapezoid(offset, t) / (t[-1] - t[0]))
-    i, i_s = ic, i_s - i_off
+    psi = cumulative_trapezoid(c.uc - (R * c.ic if track is None else track.R_t_ohm * c.ic), t, initial=0.0)
+    i, i_s = c.ic, c.i_s - c.current_offset_A
+    notes += _context_notes(rec, i_s, c.thr)
+    branches = split_branches(i, i_s, psi, c.thr, c.k_smooth)
+    curve = _commutation(branches, psi, i_s, n_points, c.k_smooth, notes)
+    return FluxResult(time_s=t, current_A=i, psi_Wb=psi, R_ohm=float(R), resistance_method=method,
+                      resistance_source=method if method in ("header", "given") else "estimated",
+                      offset_V=float(np.trapezoid(c.offset, t) / (t[-1] - t[0])),
+                      offset_drift_V_per_s=float(c.drift_V_per_s), current_offset_A=c.current_offset_A,
+                      branches=branches, **curve, notes=notes, starts_at_rest=bool(abs(float(i_s[0])) <= c.thr),
+                      offset_measured=c.n_anchors > 0, offset_uncertainty_Wb=c.offset_se_V * float(t[-1] - t[0]),
+                      track=track)
 
+
+def _track_of(rec: Recording, resistance, R_ohm: float | None, n: int) -> ResistanceTrack | None:
+    """The resistance track :func:`flux_linkage` integrates with (its ``resistance`` argument), or None."""
+    if isinstance(resistance, ResistanceTrack):
+        if resistance.label != rec.label() or resistance.R_t_ohm.size != n:
+            raise RecordingError(rec.label(), [f"the resistance track is of {resistance.label} "
+                                               f"({resistance.R_t_ohm.size} samples), not of this recording"])
+        return resistance
+    if resistance == "track":
+        return resistance_track(rec, R_ohm)
+    if resistance is not None:
+        raise RecordingError(rec.label(), [f"resistance must be None, 'track' or a ResistanceTrack, "
+                                           f"got {resistance!r}"])
+    return None
+
+
+def _constant_resistance(rec: Recording, c, R_ohm: float | None, notes: list, *, estimate: bool) -> tuple:
+    """(R [ohm], method) of one resistance throughout: given, the header's, else (``estimate``) from the
+    current plateaus or the flux closure (:func:`flux_linkage`'s Notes); (None, None) without one."""
+    if R_ohm is not None:
+        if not (math.isfinite(R_ohm) and R_ohm > 0):
+            raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_ohm!r}"])
+        return float(R_ohm), "given"
+    if rec.coil_resistance_ohm is not None:
+        return rec.coil_resistance_ohm, "header"
+    if not estimate:
+        return None, None
+    t, uc, ic = c.t, c.uc, c.ic
+    plateau = c.plateau_mask()
+    closed = abs(float(c.i_s[-1] - c.i_s[0])) <= c.thr
+    R_est, method = math.nan, None
+    if plateau.any():
+        R_est = float(np.sum(uc[plateau] * ic[plateau]) / np.sum(ic[plateau] ** 2))
+        method = "plateau"
+    elif closed:
+        q_A_s = float(np.trapezoid(ic, t))
+        if abs(q_A_s) > 1e-12:
+            R_est = float(np.trapezoid(uc, t)) / q_A_s
+            method = "closure"
+            notes.append("resistance from flux closure (assumes Psi returns to its start value)")
+    if method is None or not (math.isfinite(R_est) and R_est > 0):
+        raise RecordingError(rec.label(), [
+            "no coil resistance: the header has no coil_resistance_ohm, the current has no plateau "
+            "to estimate it from, and the excitation does not return to its start "
+            "(give --resistance-ohm or add '# coil_resistance_ohm: ...')"])
+    return R_est, method
+
+
+def _context_notes(rec: Recording, i_s: np.ndarray, thr: float) -> list[str]:
+    """Notes on what the flux of this recording is not: a moving armature, a start under current."""
+    notes = []
     if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
         notes.append(f"the armature moves by {float(np.ptp(rec.position_m)) * 1e3:.4g} mm during the recording: Psi "
                      "changes with the position too, so the branches and the 'hysteresis width' include motion "
@@ -266,41 +286,37 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     if abs(float(i_s[0])) > thr:
         notes.append(f"the recording starts energized ({float(i_s[0]):.4g} A): Psi is the change since the "
                      "first sample (its integration constant Psi(0) is not measured)")
-    branches = split_branches(i, i_s, psi, thr, k_smooth)
+    return notes
+
+
+def _commutation(branches: list, psi: np.ndarray, i_s: np.ndarray, n_points: int, k_smooth: int,
+                 notes: list) -> dict:
+    """:class:`FluxResult`'s commutation curve on its current grid, largest and mean hysteresis width, the
+    highest peak and Psi there, from the branches: the mean of the branches' peak curves, averaged over the
+    peaks reaching each level (:func:`flux_linkage`'s Notes)."""
     grid = np.linspace(0.0, max((br.peak_A for br in branches), default=0.0), n_points)
     mean_curves, widths = peak_curves(branches, grid)
-    if mean_curves:
-        stack = np.vstack(mean_curves)
-        with np.errstate(invalid="ignore"):
-            count = np.sum(np.isfinite(stack), axis=0)
-            merged = np.where(count > 0, np.nansum(stack, axis=0) / np.maximum(count, 1), np.nan)
-        keep = np.isfinite(merged)
-        com_i, com_psi = grid[keep], merged[keep]
-        all_w = np.concatenate([w[np.isfinite(w)] for w in widths])
-        width_max = float(np.max(np.abs(all_w))) if all_w.size else math.nan
-        width_mean = float(np.mean(np.abs(all_w))) if all_w.size else math.nan
-        top = max(range(len(branches)), key=lambda j: branches[j].peak_A)
-        p = branches[top].stop - 1 if branches[top].direction == "ascending" else branches[top].start
-        lo, hi = max(0, p - k_smooth), min(n, p + k_smooth + 1)
-        psi_peak = float(np.mean(psi[lo:hi]))
-        peak_A = branches[top].peak_A
-    else:
-        com_i = com_psi = np.empty(0)
-        width_max = width_mean = math.nan
+    if not mean_curves:
         p = int(np.argmax(i_s))
-        psi_peak, peak_A = float(psi[p]), float(i_s[p])
         notes.append("no current peak found: no branches, commutation curve or hysteresis width")
-    return FluxResult(time_s=t, current_A=i, psi_Wb=psi, R_ohm=float(R),
-                      resistance_source=method if method in ("header", "given") else "estimated",
-                      resistance_method=method,
-                      offset_V=offset_mean, offset_drift_V_per_s=float(b),
-                      current_offset_A=i_off, branches=branches,
-                      peak_current_A=float(peak_A), psi_at_peak_Wb=psi_peak, commutation_i_A=com_i,
-                      commutation_psi_Wb=com_psi, hysteresis_width_Wb=width_max,
-                      hysteresis_mean_width_Wb=width_mean, notes=notes,
-                      starts_at_rest=bool(abs(float(i_s[0])) <= thr),
-                      offset_measured=n_anchors > 0, offset_uncertainty_Wb=offset_se * float(t[-1] - t[0]),
-                      track=track)
+        return _curve(np.empty(0), np.empty(0), math.nan, math.nan, float(psi[p]), float(i_s[p]))
+    stack = np.vstack(mean_curves)
+    with np.errstate(invalid="ignore"):
+        count = np.sum(np.isfinite(stack), axis=0)
+        merged = np.where(count > 0, np.nansum(stack, axis=0) / np.maximum(count, 1), np.nan)
+    keep = np.isfinite(merged)
+    all_w = np.concatenate([w[np.isfinite(w)] for w in widths])
+    width_max = float(np.max(np.abs(all_w))) if all_w.size else math.nan
+    width_mean = float(np.mean(np.abs(all_w))) if all_w.size else math.nan
+    top = max(range(len(branches)), key=lambda j: branches[j].peak_A)
+    p = branches[top].stop - 1 if branches[top].direction == "ascending" else branches[top].start
+    lo, hi = max(0, p - k_smooth), min(psi.size, p + k_smooth + 1)
+    return _curve(grid[keep], merged[keep], width_max, width_mean, float(np.mean(psi[lo:hi])), branches[top].peak_A)
+
+
+def _curve(i_A, psi_Wb, width_max, width_mean, psi_peak, peak_A) -> dict:
+    return {"commutation_i_A": i_A, "commutation_psi_Wb": psi_Wb, "hysteresis_width_Wb": width_max,
+            "hysteresis_mean_width_Wb": width_mean, "psi_at_peak_Wb": psi_peak, "peak_current_A": float(peak_A)}
 
 
 @dataclass

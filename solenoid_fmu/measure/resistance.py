@@ -55,11 +55,16 @@ from .branches import branch_on_grid, split_branches
 from .conditioning import Conditioned, condition, noise_std
 from .format import Recording
 
-__all__ = ["HEADER_SIGMA_REL", "KAPPA_PRIOR_PER_J", "PINNED_REL", "CLOSURE_FACTOR", "ResistanceTrack",
-           "CampaignResistance", "resistance_track", "campaign_resistance", "closure_problems"]
+__all__ = ["HEADER_SIGMA_REL", "HEADER_OFF_SIGMAS", "KAPPA_PRIOR_PER_J", "PINNED_REL", "CLOSURE_FACTOR",
+           "ResistanceTrack", "CampaignResistance", "resistance_track", "campaign_resistance", "closure_problems"]
 
 #: Relative 1-sigma uncertainty of the header's ``coil_resistance_ohm`` as the prior of ``R0``.
 HEADER_SIGMA_REL = 0.005
+#: A recording's own data (cycle closures, plateaus) overrule its header's R when they pin R at the start
+#: this many of their sigmas away from it (:attr:`ResistanceTrack.header_overruled`): the header's 0.5 % is a
+#: prior, a three-cycle recording pins R to 0.01 %, and a header off by 0.1 % drifts that recording's eq.-4
+#: flux by several per cent of the peak per cycle.
+HEADER_OFF_SIGMAS = 5.0
 #: 1-sigma of the prior ``kappa = 0`` [1/J]: copper's alpha over a heat capacity of 10 J/K.
 KAPPA_PRIOR_PER_J = 0.00393 / 10.0
 #: A track is pinned when it leaves Psi at the peak uncertain by less than this fraction.
@@ -102,6 +107,9 @@ class ResistanceTrack:
         The header's coil_resistance_ohm.
     header_disagrees : bool
         The header R differs from the data's R0 by more than 2 combined sigmas.
+    header_overruled : bool
+        (property) The track is pinned and its R0 lies more than :data:`HEADER_OFF_SIGMAS` of its own sigmas
+        from the header R, though within the header's prior (not ``header_disagrees``).
     closure_rms_Wb, closure_noise_Wb : float
         RMS residual of the closure equations with this track and what the noise explains [Wb]
         (NaN without closure equations).
@@ -134,6 +142,22 @@ class ResistanceTrack:
     why_not_pinned: str = ""
     notes: list[str] = field(default_factory=list)
 
+    @property
+    def header_off_sigmas(self) -> float | None:
+        """How many of its own sigmas R at the start lies from the header R (None: no header R or no sigma)."""
+        if self.header_R_ohm is None or not self.R0_sigma_ohm > 0:
+            return None
+        return abs(self.header_R_ohm - self.R0_ohm) / self.R0_sigma_ohm
+
+    @property
+    def header_overruled(self) -> bool:
+        """The recording's own data overrule its header R: the track is pinned and R at the start lies more
+        than :data:`HEADER_OFF_SIGMAS` of its own sigmas from the header's, though within the header's prior
+        (else :attr:`header_disagrees` says so). The eq.-4 flux then wants the track, not the header R."""
+        return bool(self.pinned and not self.header_disagrees and self.header_R_ohm is not None
+                    and self.R0_sigma_ohm > 0
+                    and abs(self.header_R_ohm - self.R0_ohm) > HEADER_OFF_SIGMAS * self.R0_sigma_ohm)
+
     def summary(self) -> dict:
         """JSON-able numbers (SI, NaN as None) and flags."""
         def num(v):
@@ -144,7 +168,8 @@ class ResistanceTrack:
                 "kappa_source": self.kappa_source, "energy_J": num(float(self.energy_J[-1])),
                 "psi_peak_sigma_Wb": num(self.psi_peak_sigma_Wb), "pinned": self.pinned,
                 "constraints": list(self.constraints), "header_R_ohm": num(self.header_R_ohm),
-                "header_disagrees": self.header_disagrees, "closure_rms_Wb": num(self.closure_rms_Wb),
+                "header_disagrees": self.header_disagrees, "header_overruled": self.header_overruled,
+                "closure_rms_Wb": num(self.closure_rms_Wb),
                 "closure_noise_Wb": num(self.closure_noise_Wb), "why_not_pinned": self.why_not_pinned,
                 "notes": list(self.notes)}
 

@@ -5,38 +5,13 @@ but each other (relative imports) and it is copied into every pythonfmu FMU whol
 :func:`model_source_files`); its definitions generate the native FMU's C header.
 """
 
+# ruff: noqa: F403, F405  (the model's public names, model.__all__, are re-exported whole by the star import)
 from pathlib import Path
 
+from . import model
 from .hysteresis import HysteresisError, PlayHysteresis
 from .hysteresis_fit import fit_play_to_series
-from .model import (
-    COPPER_ALPHA_PER_K,
-    DEFAULT_PARAMS,
-    DRIVE_CURRENT,
-    DRIVE_VOLTAGE,
-    EFFECT_NAMES,
-    EFFECT_STATE_NAMES,
-    MAPS_JSON,
-    MAPS_NPZ,
-    MAPS_PREVIOUS,
-    MAPS_SCHEMA,
-    MAPS_SCHEMA_VERSION,
-    MAX_SUBSTEPS,
-    NEWTON_MAX_ITER,
-    NEWTON_TOL_REL,
-    ROS2_GAMMA,
-    STATE_LAYOUT,
-    STATE_NAMES,
-    MapTables,
-    ModelError,
-    ModelInputError,
-    ModelMapsError,
-    SolenoidModel,
-    effects_data,
-    load_tables,
-    maps_pair_consistent,
-    read_maps_dir,
-)
+from .model import *
 from .preisach import PreisachHysteresis
 
 #: The real-time model's source package (a directory): copied whole into every pythonfmu FMU (it imports
@@ -48,12 +23,17 @@ def model_source_files() -> list[Path]:
     """The source files of the model package :data:`MODEL_SOURCE`, sorted (what an FMU ships)."""
     return sorted(MODEL_SOURCE.glob("*.py"))
 
+
+#: The unit's public names: the model's (``model.__all__``, written out here because the layering test reads
+#: this list as a literal; tests/test_layering.py checks the two agree) and the hysteresis operators'.
 __all__ = [
     "COPPER_ALPHA_PER_K", "DEFAULT_PARAMS", "DRIVE_CURRENT", "DRIVE_VOLTAGE", "EFFECT_NAMES", "EFFECT_STATE_NAMES",
-    "HysteresisError", "MAPS_JSON", "MAPS_NPZ", "MAPS_PREVIOUS", "MAPS_SCHEMA", "MAPS_SCHEMA_VERSION", "MAX_SUBSTEPS",
-    "MODEL_SOURCE",
-    "MapTables", "ModelError", "ModelInputError", "ModelMapsError", "NEWTON_MAX_ITER", "NEWTON_TOL_REL",
-    "PlayHysteresis", "PreisachHysteresis", "ROS2_GAMMA", "STATE_LAYOUT", "STATE_NAMES", "SolenoidModel",
-    "effects_data", "fit_play_to_series", "load_tables", "maps_pair_consistent", "model_source_files",
-    "read_maps_dir",
+    "MAPS_JSON", "MAPS_MAX_ARRAY_ELEMENTS", "MAPS_NPZ", "MAPS_PREVIOUS", "MAPS_SCHEMA", "MAPS_SCHEMA_VERSION",
+    "MAX_SUBSTEPS", "CoilRecord", "EddyRecord", "EffectsRecord", "MapTables", "ModelError", "ModelInputError",
+    "ModelMapsError", "NEWTON_MAX_ITER", "NEWTON_TOL_REL", "ROS2_GAMMA", "SolenoidModel", "STATE_LAYOUT",
+    "STATE_NAMES", "cell_coefficients", "coil_problems", "eddy_problems", "effects_data", "load_tables",
+    "maps_pair_consistent", "pchip_scaled_slopes", "play_step", "read_maps_dir", "replace_meta",
+    # the model package itself and its sources (the FMU payload), the hysteresis operators
+    "model", "MODEL_SOURCE", "model_source_files", "HysteresisError", "PlayHysteresis", "PreisachHysteresis",
+    "fit_play_to_series",
 ]

@@ -89,7 +89,7 @@ def _cli(args) -> int:
         tables = load_tables(maps_dir)
     except ModelError as exc:
         raise RigError(f"cannot use the maps: {exc}") from None
-    geometry_name = ((tables.meta.get("provenance") or {}).get("geometry") or {}).get("name")
+    geometry_name = (tables.provenance.get("geometry") or {}).get("name")
     if not args.campaign and isinstance(geometry_name, str) and geometry_name.strip():
         cfg = dataclasses.replace(cfg, solenoid=geometry_name.strip())
     print(f"rig: {cfg.solenoid}, effects: {', '.join(effects.names()) or 'none'}, maps: {maps_dir}")

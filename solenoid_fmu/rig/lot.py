@@ -35,7 +35,7 @@ import numpy as np
 
 from ..field import STEELS, RoschkeParameters
 from ..fileio import atomic_write_text
-from ..realtime import MapTables
+from ..realtime import MapTables, replace_meta
 from .campaign import run_campaign
 from .effects import Effects, Friction
 from .errors import RigError
@@ -183,10 +183,10 @@ def scale_turns(tables: MapTables, k: float, R20_factor: float = 1.0) -> MapTabl
     t = tables.tables()
     n_psi = len(t["i_f_A"])
     psi = np.arange(n_psi) * t["dpsi_Wb"]
-    meta = json.loads(json.dumps(tables.meta))
-    coil = meta.setdefault("coil", {})
-    if coil.get("resistance_ohm_20C") is not None:
-        coil["resistance_ohm_20C"] = float(coil["resistance_ohm_20C"]) * R20_factor
+    coil = tables.coil
+    if coil.resistance_ohm_20C is not None:
+        coil = dataclasses.replace(coil, resistance_ohm_20C=float(coil.resistance_ohm_20C) * R20_factor)
+    meta = replace_meta(tables.meta, coil=coil)
     return MapTables(k * psi, t["x_m"], np.asarray(t["i_f_A"]) / k, t["force_N"], meta=meta,
                      where=f"{tables.where} (turns x {k:g})", i_fem_max_A=t["i_fem_max_A"] / k)
 

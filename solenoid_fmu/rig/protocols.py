@@ -296,9 +296,9 @@ def random_campaign(tables: MapTables, output_dir, effects: str | Effects = "", 
     rng = np.random.default_rng([seed, 0x5EED])
     if isinstance(effects, str):
         effects = Effects.from_names(effects)
-    coil = tables.meta.get("coil") or {}
-    i_max = float(coil.get("max_current_A") or 2.0)
-    R = float(coil.get("resistance_ohm_20C") or 10.0)
+    coil = tables.coil
+    i_max = float(coil.max_current_A or 2.0)
+    R = float(coil.resistance_ohm_20C or 10.0)
     x = tables.tables()["x_m"]
     excs = random_protocol(rng, x_range_m=(float(x[0]), float(x[-1])), max_current_A=i_max, R_ohm=R,
                            max_samples=max_samples)

@@ -96,8 +96,9 @@ Modules (each by job; the package is the FMU payload: numpy and the standard lib
 imports among its own modules, copied whole into every pythonfmu FMU)
 ------------------------------------------------------------------------------------------------
 ``definitions`` constants, state layout (named indices ``ST_*``, ``FX_*``), parameters, errors;
-``maps_io`` the maps file format and its checks, :func:`load_tables`; ``tables`` :class:`MapTables`
-and the one cell lookup :func:`~.tables.cell_cubic`; ``effects`` the effects section of maps.json;
+``maps_io`` the maps file format and its checks, :func:`load_tables`; ``records`` the typed records of
+maps.json's metadata (:class:`CoilRecord`, :class:`EddyRecord`, :class:`EffectsRecord`); ``tables``
+:class:`MapTables` and the one cell lookup :func:`~.tables.cell_cubic`; ``effects`` the effects section of maps.json;
 ``play`` the play operator; ``params`` the parameter checks; ``integrate`` the ROS2 sub-steps;
 ``solenoid`` :class:`SolenoidModel`.
 """
@@ -134,6 +135,7 @@ from .maps_io import (
     read_maps_dir,
 )
 from .play import play_step
+from .records import CoilRecord, EddyRecord, EffectsRecord, coil_problems, eddy_problems, replace_meta
 from .solenoid import SolenoidModel
 from .tables import MapTables, cell_coefficients, pchip_scaled_slopes
 
@@ -147,6 +149,9 @@ __all__ = [
     "MAPS_SCHEMA",
     "MAPS_SCHEMA_VERSION",
     "MAX_SUBSTEPS",
+    "CoilRecord",
+    "EddyRecord",
+    "EffectsRecord",
     "MapTables",
     "ModelError",
     "ModelInputError",
@@ -158,6 +163,8 @@ __all__ = [
     "STATE_LAYOUT",
     "STATE_NAMES",
     "cell_coefficients",
+    "coil_problems",
+    "eddy_problems",
     "effects_data",
     "load_tables",
     "pchip_scaled_slopes",
@@ -168,4 +175,5 @@ __all__ = [
     "maps_pair_consistent",
     "play_step",
     "read_maps_dir",
+    "replace_meta",
 ]

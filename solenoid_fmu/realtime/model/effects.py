@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from .definitions import EFFECT_NAMES, ModelMapsError
+from .definitions import ModelMapsError
 from .tables import MapTables
 
 
@@ -18,18 +18,11 @@ def effects_data(tables: MapTables) -> dict:
     g_nodes [-]} or null}, ``eddy_ladder`` {G_S [S], tau_s [s]}, ``heating`` {C_th_J_per_K,
     R_th_K_per_W, alpha_per_K}, ``friction`` {force_N, presliding_m}.
     """
-    raw = tables.meta.get("effects") or {}
     where = f"{tables.where}: maps.json effects"
-    if not isinstance(raw, dict):
-        raise ModelMapsError(f"{where}: must be an object")
     out = {}
-    for name, data in raw.items():
-        if name not in EFFECT_NAMES:
-            raise ModelMapsError(f"{where}: unknown effect {name!r}; known: {', '.join(EFFECT_NAMES)}")
+    for name, data in tables.effects.items():  # the record: an object of known effects, each an object or null
         if data is None:
             continue
-        if not isinstance(data, dict):
-            raise ModelMapsError(f"{where}.{name}: must be an object")
         try:
             if name == "hysteresis":
                 r = [float(v) for v in data["thresholds"]]

@@ -9,11 +9,13 @@ arithmetic).
 from __future__ import annotations
 
 import bisect
+import copy
 import math
 
 import numpy as np
 
 from .definitions import NEWTON_MAX_ITER, NEWTON_TOL_REL, ModelMapsError
+from .records import CoilRecord, EddyRecord, EffectsRecord, replace_meta
 
 
 def pchip_scaled_slopes(y, *, symmetry: str) -> np.ndarray:
@@ -203,12 +205,14 @@ class MapTables:
     extrapolated : array-like, shape (n_psi, n_x), optional
         1.0 where the node lies beyond the FEM data of its column (kept for reference).
     meta : dict, optional
-        The ``maps.json`` sidecar (coil, eddy, provenance); kept as given.
+        The ``maps.json`` sidecar (coil, eddy, effects, provenance); kept as given, read through the
+        typed records :attr:`coil`, :attr:`eddy`, :attr:`effects` (a coil or eddy value of the wrong type
+        is refused here, naming ``where``, the file and the key). Other maps.json: :meth:`with_meta`.
     where : str
         Name used in error messages (the maps directory).
     i_fem_max_A : float, optional
         Largest current of the FEM sweep [A] (the maps' ``i_A[-1]``); beyond it the map is
-        extrapolated and the model reports an event. Default: ``meta["coil"]["max_current_A"]``,
+        extrapolated and the model reports an event. Default: the coil's ``max_current_A``,
         else no limit.
 
     Notes
@@ -224,6 +228,7 @@ class MapTables:
         dx = np.diff(x)
         self.where = where
         self.meta = dict(meta) if meta else {}
+        coil, _ = self._checked_records()  # a coil or eddy section of the wrong type: refused now, not in a step
         self.n_psi = int(psi.size)
         self.n_x = int(x.size)
         self.dpsi_Wb = float(dpsi)
@@ -245,7 +250,7 @@ class MapTables:
         self.CF = _cell_tuples(self._coef_f)
         # Largest current of the FEM sweep: beyond it the map is extrapolated (event).
         if i_fem_max_A is None:
-            i_fem_max_A = (self.meta.get("coil") or {}).get("max_current_A")
+            i_fem_max_A = coil.max_current_A
         self.i_fem_max_A = math.inf if i_fem_max_A is None else float(i_fem_max_A)
         self.extrapolated = None if extrapolated is None else extrapolated.copy()
         #: (CI, CF, n_x - 1, n_psi - 2, 1 / dpsi, psi_max): what :func:`cell_cubic` reads
@@ -335,17 +340,62 @@ class MapTables:
             "i_fem_max_A": self.i_fem_max_A,
         }
 
+    # -- maps.json's metadata, typed (records.py) -----------------------------------------------
+    @property
+    def coil(self) -> CoilRecord:
+        """maps.json's ``coil`` section (an empty record when the maps have none)."""
+        return CoilRecord.from_dict(self.meta.get("coil"), self.where)
+
+    @property
+    def eddy(self) -> EddyRecord:
+        """maps.json's ``eddy`` section (an empty record when the maps have none)."""
+        return EddyRecord.from_dict(self.meta.get("eddy"), self.where)
+
+    @property
+    def effects(self) -> EffectsRecord:
+        """maps.json's ``effects`` section (an empty record when the maps have none)."""
+        return EffectsRecord.from_dict(self.meta.get("effects"), self.where)
+
+    @property
+    def name(self) -> str | None:
+        """maps.json's ``name``, or None."""
+        return self.meta.get("name")
+
+    @property
+    def provenance(self) -> dict:
+        """maps.json's ``provenance`` (geometry, material, solver, code version: free-form), or ``{}``."""
+        return self.meta.get("provenance") or {}
+
     @property
     def resistance_ohm_20C(self) -> float | None:
         """Coil resistance at 20 degC [ohm] from ``maps.json``, or None."""
-        v = (self.meta.get("coil") or {}).get("resistance_ohm_20C")
+        v = self.coil.resistance_ohm_20C
         return None if v is None else float(v)
 
     @property
     def G_eddy_S(self) -> float | None:
         """Eddy-current conductance [S] from ``maps.json``, or None when not identified."""
-        v = (self.meta.get("eddy") or {}).get("G_eddy_S")
+        v = self.eddy.G_eddy_S
         return None if v is None else float(v)
+
+    def with_meta(self, **sections) -> MapTables:
+        """These tables with other maps.json sections (the tables themselves unchanged and shared).
+
+        Parameters
+        ----------
+        **sections
+            Top-level sidecar keys and their new values: a record (``coil=CoilRecord(...)``,
+            ``eddy=dataclasses.replace(tables.eddy, G_eddy_S=...)``) or plain data
+            (``effects={...}``); :func:`~.records.replace_meta`.
+        """
+        new = copy.copy(self)
+        new.meta = replace_meta(self.meta, **sections)
+        new._checked_records()
+        return new
+
+    def _checked_records(self) -> tuple[CoilRecord, EddyRecord]:
+        """The coil and eddy records (ModelMapsError naming the file and key when a value has the wrong type)."""
+        return self.coil, self.eddy
 
 
 def solve_psi(tab: MapTables, i_A: float, j: int, w: float, psi_guess: float) -> tuple[float, bool]:
