@@ -43,12 +43,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RecordingError
-from ..measure import campaign_resistance, commutation_curve, flux_linkage, hold_segments, peak_curves
+from ..measure import (
+    HEADER_OFF_SIGMAS,
+    campaign_resistance,
+    commutation_curve,
+    flux_linkage,
+    hold_segments,
+    peak_curves,
+)
 from .measured import force_stroke_curve, groups_of
 
 __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
            "flux_points", "force_points", "hold_points", "HOLD_KINDS", "eddy_split", "resistance_choice",
-           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN"]
+           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN", "HEADER_OFF_SIGMAS"]
 
 #: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
 PSI_FLOOR_REL = 2e-3
@@ -63,10 +70,6 @@ EDDY_RATE_SPREAD = 2.0
 #: Below this many loop half-widths (in current) the branch mean is no estimate of the curve at all
 #: (the descending branch ends at the remanence): there the whole half-width counts as its uncertainty.
 LOOP_NEAR_ORIGIN = 3.0
-#: A recording's own data (cycle closures, plateaus) overrule its header's R when they pin R at the start
-#: this many of their sigmas away from it: the header's 0.5 % is a prior, a three-cycle recording pins R to
-#: 0.01 %, and a header off by 0.1 % drifts that recording's eq.-4 flux by several per cent of the peak per cycle.
-HEADER_OFF_SIGMAS = 5.0
 #: Kinds of recordings whose current holds give static points (:func:`hold_points`).
 HOLD_KINDS = ("ramp", "voltage_step")
 #: Positions taken from each force-stroke curve (evenly over the range passed both ways).
@@ -214,11 +217,8 @@ def resistance_choice(recs) -> tuple:
     why += [f"{tr.label}: header resistance disagrees with the data (R0 = {tr.R0_ohm:.5g} +- "
             f"{tr.R0_sigma_ohm:.2g} ohm)" for tr in camp.tracks.values() if tr.header_disagrees]
     why += [f"{tr.label}: its own data pin R at the start to {tr.R0_ohm:.6g} +- {tr.R0_sigma_ohm:.2g} ohm, "
-            f"{abs(tr.header_R_ohm - tr.R0_ohm) / tr.R0_sigma_ohm:.0f} sigma from the header's "
-            f"{tr.header_R_ohm:.6g} ohm"
-            for tr in camp.tracks.values()
-            if tr.pinned and not tr.header_disagrees and tr.header_R_ohm is not None and tr.R0_sigma_ohm > 0
-            and abs(tr.header_R_ohm - tr.R0_ohm) > HEADER_OFF_SIGMAS * tr.R0_sigma_ohm]
+            f"{tr.header_off_sigmas:.0f} sigma from the header's {tr.header_R_ohm:.6g} ohm"
+            for tr in camp.tracks.values() if tr.header_overruled]
     heated = bool(why)
     notes = ([f"resistance: R(t) tracks used for eq. 4 because {'; '.join(why)}"] if heated else
              ["resistance: the header resistances hold (no measurable heating, no header at odds with the data)"])

@@ -88,7 +88,7 @@ static void sol_step_fx(Inst *in, double t_s, double h)
     const int voltage = c->voltage, heat = c->heat_on, hy = c->hyst_on, nl = c->lad_on ? SOL_N_LAD : 0;
     const double u = voltage ? c->u_V : c->i_A, x = c->x_m, R0 = c->R, G0 = c->G;
     const double alpha = c->alpha, Cth = c->Cth, Rth = c->Rth, gain = c->gain;
-    double ik[LAD_ALLOC];
+    double ik[LAD_ALLOC] = {0.0};  /* initialized: with one section gcc -Werror=maybe-uninitialized refused it */
     double T = fx[FX_T_RISE_K], ih = fx[FX_I_HYST_A], psi0 = s[ST_PSI_WB], psi = psi0, hs, gh, nd, w, R, sik, i_f, d_end, force;
     double dpsi, ffr;
     long n, sub;
