@@ -40,6 +40,7 @@ import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
+from .elements import inv2, symmetric_matrices, upper_pairs
 from .geometry import Geometry
 from .linear_solver import SPDSolver
 from .material import NU_0, BHCurve
@@ -132,17 +133,15 @@ class _Config:
         self.G = np.stack([basis.basis[k][0].grad for k in range(6)], axis=0)  # (6, 2, nel, nq)
         self.phi = np.stack([np.asarray(basis.basis[k][0]) for k in range(6)], axis=0)  # (6, nel, nq)
         self.w_over_r = self.dx / self.r
-        # products of basis gradients, contracted once per gap, for the 21 pairs k <= l of the symmetric
-        # element matrices, one contiguous block per quadrature point: GGu[q, m] = grad phi_k . grad phi_l
-        GG = np.einsum("kdeq,ldeq->kleq", self.G, self.G)
-        self.GGu = np.ascontiguousarray(GG[_UPPER_K, _UPPER_L].transpose(2, 0, 1))  # (nq, 21, nel)
+        # products of basis gradients grad phi_k . grad phi_l, contracted once per gap (k <= l, per point)
+        self.GGu = upper_pairs(np.einsum("kdeq,ldeq->kleq", self.G, self.G))  # (nq, 21, nel)
         # element Jacobians of the affine map and their x-derivative along the morph velocity
         t = basis.mesh.t  # skfem may reorder the vertices within each element: use its order
         p = self.p
         self.J = np.array(
             [[p[0, t[1]] - p[0, t[0]], p[0, t[2]] - p[0, t[0]]], [p[1, t[1]] - p[1, t[0]], p[1, t[2]] - p[1, t[0]]]]
         )  # (2, 2, nel)
-        self.Jinv = _inv2(self.J)
+        self.Jinv = inv2(self.J)
         lam = np.array([1 - basis.X[0] - basis.X[1], basis.X[0], basis.X[1]])  # (3, nq) barycentric
         self.lam = lam
         # unit sources: f_coil = int J_coil(i=1 A) phi_k, f_fixed = int J from ampere_turn regions
@@ -165,17 +164,6 @@ class _Config:
         L = np.einsum("ijn,jkn->ikn", dJ, self.Jinv)
         dr_q = np.einsum("vn,vq->nq", vr[t], self.lam)
         return L, dr_q
-
-
-#: The 21 index pairs k <= l of a symmetric 6 x 6 element matrix, and each (k, l)'s place among them.
-_UPPER_K, _UPPER_L = np.triu_indices(6)
-_SYM_FULL = np.zeros((6, 6), dtype=np.intp)
-_SYM_FULL[_UPPER_K, _UPPER_L] = _SYM_FULL[_UPPER_L, _UPPER_K] = np.arange(_UPPER_K.size)
-
-
-def _inv2(J: np.ndarray) -> np.ndarray:
-    det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
-    return np.array([[J[1, 1], -J[0, 1]], [-J[1, 0], J[0, 0]]]) / det
 
 
 def _scatter_vector(solver: Solver, local: np.ndarray, elements: np.ndarray) -> np.ndarray:
@@ -518,19 +506,7 @@ class Solver:
         gG = np.einsum("deq,kdeq->keq", g, G)  # (6, nel, nq): g . grad phi_k
         a = cfg.w_over_r * nu
         c = cfg.w_over_r * 2 * dnu / r2
-        # the 21 distinct entries of the symmetric element matrices, summed over the quadrature points one
-        # point at a time (elementwise products: the same rounding on every CPU, and K exactly symmetric)
-        gq = np.ascontiguousarray(gG.transpose(2, 0, 1))  # (nq, 6, nel)
-        gcq = gq * np.ascontiguousarray(c.T)[:, None, :]
-        aq = np.ascontiguousarray(a.T)  # (nq, nel)
-        ku, lu = _UPPER_K, _UPPER_L
-        Ks_u = cfg.GGu[0] * aq[0]
-        Kn_u = gq[0][ku] * gcq[0][lu]
-        for q in range(1, aq.shape[0]):
-            Ks_u += cfg.GGu[q] * aq[q]
-            Kn_u += gq[q][ku] * gcq[q][lu]
-        K_s = Ks_u[_SYM_FULL]  # (6, 6, nel) secant stiffness: res_loc = K_s u_e
-        K = (Ks_u + Kn_u)[_SYM_FULL]
+        K_s, K = symmetric_matrices(cfg.GGu, a, gG, c)  # (6, 6, nel) secant (res_loc = K_s u_e) and tangent
         res_loc = np.einsum("keq,eq->ke", gG, a)
         res = np.bincount(self.dofs.ravel(), weights=res_loc.ravel(), minlength=self.ndofs) - f
         floor_loc = np.einsum("kle,le->ke", np.abs(K_s), np.abs(u[self.dofs]))
