@@ -1,7 +1,8 @@
 r"""The B(H) parameterization of the identification: physical by construction (paper 4.2).
 
 The differential susceptibility :math:`\chi(H) = (dB/dH)/\mu_0 - 1` is described on a grid of
-``m`` field strengths equally spaced in :math:`u = \ln H`: :math:`\ln\chi_j = c + \sum_{k\le j} d_k`
+``m`` rising field strengths (log-spaced by default; the identification's stage 2 spaces them in B,
+:func:`~.joint.stage2_nodes`), linear in :math:`u = \ln H` between them: :math:`\ln\chi_j = c + \sum_{k\le j} d_k`
 with increments :math:`d_k \ge 0` up to a fixed peak index and :math:`d_k \le 0` after it, and a
 last slope :math:`\le -1.2` (in :math:`\ln\chi` per :math:`\ln H`) that continues beyond the grid.
 So :math:`\chi` rises to one maximum (the inflection point of B(H)) and then falls towards 0, i.e.
@@ -36,16 +37,19 @@ __all__ = [
 
 #: Last log-log slope of chi: saturation law chi ~ H^-1.2 or faster (keeps B bounded-slope).
 MAX_TAIL_SLOPE = -1.2
+#: Range of ln chi at any node: chi from 1e-6 (deep saturation: the steel's share of B below 1e-6 of
+#: mu0 H) to 1e5 (above the permeability of any solenoid steel).
+LOG_CHI_RANGE = (float(np.log(1e-6)), float(np.log(1e5)))
 
 
 @dataclass(frozen=True)
 class SusceptibilityModel:
-    """The unimodal log-susceptibility parameterization on a log-H grid.
+    """The unimodal log-susceptibility parameterization on a grid of field strengths.
 
     Attributes
     ----------
     H_nodes : ndarray, shape (m,)
-        Grid of field strengths [A/m], log-spaced.
+        Grid of field strengths [A/m], rising (ln chi is linear in ln H between the nodes).
     peak : int
         Index of the node where chi peaks (fixed from the start curve).
     """
@@ -105,17 +109,27 @@ class SusceptibilityModel:
         return BHCurve(B_T=B, nu_d=nu, H_A_per_m=Hk, table_H_A_per_m=H, table_B_T=B, name=name)
 
 
-def fit_to_curve(curve: BHCurve, m: int = 13, H_range=(50.0, 2e5)) -> tuple[SusceptibilityModel, np.ndarray]:
+def fit_to_curve(curve: BHCurve, m: int = 13, H_range=(50.0, 2e5), H_nodes=None
+                 ) -> tuple[SusceptibilityModel, np.ndarray]:
     """The parameterization and parameters closest to a given curve (e.g. the literature one).
 
-    Start: least squares on ln chi at the nodes under the bounds (the peak index is where the
-    curve's chi peaks); then bounded least squares on B(H) itself at 200 field strengths.
+    Nodes: ``m`` log-spaced over ``H_range`` [A/m], or ``H_nodes`` [A/m] (rising) when given.
+    Start: least squares on ln chi at the nodes under the bounds, chi there being the chord of the curve
+    over the node's cell (half-way to its neighbours in ln H: a sharp knee between two nodes keeps its
+    share of B); the peak index is where that chi peaks. Then bounded least squares on B(H) itself at
+    200 field strengths.
     """
     from scipy.optimize import least_squares, lsq_linear  # heavy (about 0.5 s): loaded on first use
 
-    H_nodes = np.geomspace(*H_range, m)
-    B = curve.B_of_H(H_nodes)
-    chi = np.maximum(curve.mu_r_differential(B) - 1.0, 1e-6)
+    if H_nodes is None:
+        H_nodes = np.geomspace(*H_range, m)
+    H_nodes = np.asarray(H_nodes, dtype=float)
+    m = len(H_nodes)
+    u = np.log(H_nodes)
+    half = 0.5 * np.diff(u)
+    H_lo, H_hi = np.exp(u - np.concatenate([[half[0]], half])), np.exp(u + np.concatenate([half, [half[-1]]]))
+    chord = (curve.B_of_H(H_hi) - curve.B_of_H(H_lo)) / (MU_0 * (H_hi - H_lo))
+    chi = np.maximum(chord - 1.0, 1e-6)
     peak = int(np.argmax(chi))
     model = SusceptibilityModel(H_nodes, peak)
     # ln chi_j = c + sum_{k<=j} d_k : a lower-triangular linear system for (c, d)
@@ -130,7 +144,7 @@ def fit_to_curve(curve: BHCurve, m: int = 13, H_range=(50.0, 2e5)) -> tuple[Susc
     chi2 = max(curve.mu_r_differential(curve.B_of_H(H2)) - 1.0, 1e-9)
     tail = np.clip(np.log(chi2 / chi[-1]) / np.log(4.0), lo[m], hi[m])
     theta = np.clip(np.concatenate([sol.x, [tail]]), lo + 1e-9, hi - 1e-9)
-    Hs = np.geomspace(H_range[0] / 5, H_range[1] * 5, 200)
+    Hs = np.geomspace(H_nodes[0] / 5, H_nodes[-1] * 5, 200)
     Bs = curve.B_of_H(Hs)
 
     def res(th):
@@ -201,7 +215,7 @@ def scaled_curve(curve: BHCurve, log_a: float, log_s: float, name: str = "scaled
 
 
 
-def project_unimodal(model: SusceptibilityModel, theta) -> np.ndarray:
+def project_unimodal(model: SusceptibilityModel, theta, floor=None) -> np.ndarray:
     """theta moved to the nearest (least squares in ln chi at the nodes) parameters whose chi rises to
     one peak, at any node, and then falls (paper sec. 4.2), within the model's other bounds.
 
@@ -212,10 +226,15 @@ def project_unimodal(model: SusceptibilityModel, theta) -> np.ndarray:
     theta = np.asarray(theta, dtype=float)
     m = len(model.H_nodes)
     lo, hi = model.bounds()
-    fit, _ = unimodal_fit(model.log_chi_nodes(theta))
+    v = model.log_chi_nodes(theta)
+    if floor is not None:  # ln chi at each node kept above ``floor`` (before the projection: it stays unimodal)
+        v = np.maximum(v, floor)
+    fit, _ = unimodal_fit(v)
     fit[0] = np.clip(fit[0], lo[0], hi[0])
-    fit = np.minimum(np.maximum(fit, fit[0] - 10.0), fit[0] + 10.0)
-    d = np.clip(np.diff(fit), -10.0, 10.0)
+    # node values within the susceptibility's physical range (not within some distance of the first
+    # node: a steel with chi = 6000 at low field saturates to chi < 0.01, 13 in ln chi below it)
+    fit = np.clip(fit, LOG_CHI_RANGE[0], LOG_CHI_RANGE[1])
+    d = np.clip(np.diff(fit), lo[1:m].min(), hi[1:m].max())
     out = np.concatenate([[fit[0]], d, [np.clip(theta[m], lo[m], hi[m])]])
     return out
 
