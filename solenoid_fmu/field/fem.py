@@ -241,7 +241,10 @@ class Solver:
         # the moving (armature) elements and the eggshell weight for the Maxwell-stress force
         self.moving_elements = np.isin(mm.region, [k for k, r in enumerate(geometry.regions) if r.moves])
         self._pattern(linear_backend)
-        self._configs: dict[float, _Config] = {}  # the last CONFIG_CACHE gaps, oldest first
+        self._configs: dict[float, _Config] = {}  # the last config_cache gaps, oldest first
+        #: Gaps whose quadrature data are kept (default :data:`CONFIG_CACHE`; a caller that returns to more
+        #: gaps, like the identification's force points and their +-dx, raises it).
+        self.config_cache = CONFIG_CACHE
         self.solves = 0
         #: Relative residual target of Newton; None: NEWTON_RTOL (callers that need less, e.g. the
         #: identification, raise it).
@@ -275,12 +278,12 @@ class Solver:
         return _scatter_vector(self, local, sel)
 
     def config(self, x_m: float) -> _Config:
-        """Quadrature data at gap ``x_m`` (cached for the last :data:`CONFIG_CACHE` gaps asked for: the
+        """Quadrature data at gap ``x_m`` (cached for the last ``config_cache`` gaps asked for: the
         identification returns to the same strokes and force offsets at every evaluation)."""
         cfg = self._configs.pop(x_m, None)
         if cfg is None:
             cfg = _Config(self, x_m)
-            while len(self._configs) >= CONFIG_CACHE:
+            while len(self._configs) >= self.config_cache:
                 self._configs.pop(next(iter(self._configs)))
         self._configs[x_m] = cfg  # most recent last
         return cfg
