@@ -39,6 +39,8 @@ import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
+from .eggshell import EGGSHELL_M as EGGSHELL_M
+from .eggshell import eggshell_weight
 from .elements import symmetric_matrices
 from .geometry import Geometry
 from .linear_solver import SPDSolver
@@ -63,7 +65,6 @@ NEWTON_MAXIT = 40
 #: below it and comparing energies is noise (an approximate Armijo condition, Hager & Zhang 2005). The solution is
 #: then within ~sqrt(64 eps) = 1e-7 in the energy norm, where the full Newton step converges quadratically.
 NEWTON_ENERGY_ROUNDING = 64.0
-EGGSHELL_M = 0.4e-3  # thickness of the air layer over which the Maxwell-stress weight falls to 0
 #: A Newton stall is accepted as converged (with a logged note) when the relative residual has stopped
 #: decreasing below this: the residual after an update shrunk to ``NEWTON_STALL_UPDATE`` of the solution norm
 #: still misses the target, or the iteration limit is reached and the best iterate's residual is below it. At a
@@ -347,7 +348,7 @@ class Solver:
         F_co = F_st = float("nan")
         if forces:
             F_co = self._force_virtual_work(cfg, u, dens, self.mesh.dr_dx, self.mesh.dz_dx)
-            F_st = (self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
+            F_st = (self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), eggshell_weight(self, cfg))
                     if self.moving_elements.any() else 0.0)
         return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, residual_floor=floor, note=note)
 
@@ -434,26 +435,6 @@ class Solver:
         res[self.dirichlet_mask] = 0.0
         A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.ndofs, self.ndofs))
         return A, res, floor_rows
-
-    def _eggshell(self, cfg: GapConfig) -> np.ndarray:
-        """Vertex weight g: 1 on the armature, 0 on all other bodies, falling across the air."""
-        mm = self.mesh
-        nv = mm.n_vertices
-        g = np.full(nv, np.nan)
-        body = ~self.moving_elements & (mm.region >= 0)
-        # air regions listed as polygons (material air, e.g. the ring) count as air
-        air_regions = [k for k, r in enumerate(self.geometry.regions) if r.material == "air" and not r.moves]
-        body &= ~np.isin(mm.region, air_regions)
-        g[mm.t[:, body].ravel()] = 0.0
-        g[mm.t[:, self.moving_elements].ravel()] = 1.0
-        free = np.isnan(g)
-        # distance of free (air) vertices to the armature's vertices, capped by the layer thickness
-        arm_v = np.unique(mm.t[:, self.moving_elements])
-        from scipy.spatial import cKDTree  # loaded on first use (about 0.2 s)
-
-        d, _ = cKDTree(cfg.p[:, arm_v].T).query(cfg.p[:, free].T)
-        g[free] = np.clip(1.0 - d / EGGSHELL_M, 0.0, 1.0)
-        return g
 
     def _force_virtual_work(self, cfg, u, density, vr, vz) -> float:
         """dPi/dx at fixed nodal values for vertex velocity (vr, vz): the force closing the gap [N].
