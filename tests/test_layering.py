@@ -42,7 +42,6 @@ SIZE_EXCEPTIONS: dict[str, str] = {
                                                         "issue 24's items 1-2, split when the fits are next changed",
     "fmu/export.py:build_fmu": "not split yet",
     "identification/campaign.py:identify_from_recordings": "not split yet",
-    "identification/joint.py:identify_joint": "not split yet",
     "maps/plots.py:plot_maps": "not split yet",
     "measure/flux.py:commutation_curve": "not split yet",
     "measure/reader.py:_parse_lines": "not split yet",
