@@ -43,7 +43,6 @@ SIZE_EXCEPTIONS: dict[str, str] = {
     "fmu/export.py:build_fmu": "not split yet",
     "maps/plots.py:plot_maps": "not split yet",
     "measure/flux.py:commutation_curve": "not split yet",
-    "measure/reader.py:_parse_lines": "not split yet",
 }
 #: Function-level package imports allowed, with the reason.
 LAZY_IMPORTS = {"__init__.py": "the public verbs load on first use so `import solenoid_fmu` stays cheap"}
