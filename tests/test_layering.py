@@ -40,7 +40,6 @@ SIZE_EXCEPTIONS: dict[str, str] = {
                                                      "issue 24's items 1-2, split when the fits are next changed",
     "realtime/hysteresis_loop_fit.py:fit_play_to_loop": "an offline fit (scipy), not the real-time step; outside "
                                                         "issue 24's items 1-2, split when the fits are next changed",
-    "fmu/export.py:build_fmu": "not split yet",
 }
 #: Function-level package imports allowed, with the reason.
 LAZY_IMPORTS = {"__init__.py": "the public verbs load on first use so `import solenoid_fmu` stays cheap"}
