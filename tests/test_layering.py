@@ -35,12 +35,7 @@ LAYERS = {
 MAX_LINES = 500
 MAX_FUNCTION_LINES = 80
 #: Modules or functions (``path:function``) allowed to be longer, with the reason.
-SIZE_EXCEPTIONS: dict[str, str] = {
-    "realtime/hysteresis_fit.py:fit_play_to_series": "an offline fit (scipy), not the real-time step; outside "
-                                                     "issue 24's items 1-2, split when the fits are next changed",
-    "realtime/hysteresis_loop_fit.py:fit_play_to_loop": "an offline fit (scipy), not the real-time step; outside "
-                                                        "issue 24's items 1-2, split when the fits are next changed",
-}
+SIZE_EXCEPTIONS: dict[str, str] = {}
 #: Function-level package imports allowed, with the reason.
 LAZY_IMPORTS = {"__init__.py": "the public verbs load on first use so `import solenoid_fmu` stays cheap"}
 
