@@ -178,7 +178,7 @@ class Solver:
         self.dirichlet_mask = isdir
         self.linear_solver = SPDSolver(self._indptr, self._indices, n, linear_backend)
 
-    def _assemble_source(self, cfg: GapConfig, density: np.ndarray) -> np.ndarray:
+    def assemble_source(self, cfg: GapConfig, density: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(density)
         if sel.size == 0:
             return np.zeros(self.ndofs)

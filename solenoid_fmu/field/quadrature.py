@@ -41,8 +41,8 @@ class GapConfig:
         lam = np.array([1 - basis.X[0] - basis.X[1], basis.X[0], basis.X[1]])  # (3, nq) barycentric
         self.lam = lam
         # unit sources: f_coil = int J_coil(i=1 A) phi_k, f_fixed = int J from ampere_turn regions
-        self.f_coil = solver._assemble_source(self, solver.coil_density_per_A)
-        self.f_fixed = solver._assemble_source(self, solver.fixed_density)
+        self.f_coil = solver.assemble_source(self, solver.coil_density_per_A)
+        self.f_fixed = solver.assemble_source(self, solver.fixed_density)
         coil = solver.coil_elements
         self.psi_weights = scatter_vector(
             solver, self.phi[:, coil] * self.dx[coil][None], coil
