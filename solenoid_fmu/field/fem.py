@@ -179,6 +179,7 @@ class Solver:
         self.linear_solver = SPDSolver(self._indptr, self._indices, n, linear_backend)
 
     def assemble_source(self, cfg: GapConfig, density: np.ndarray) -> np.ndarray:
+        """Load vector of a current density per element ``density`` [A/m^2] at the gap of ``cfg``."""
         sel = np.flatnonzero(density)
         if sel.size == 0:
             return np.zeros(self.ndofs)
