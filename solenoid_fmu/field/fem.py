@@ -33,18 +33,21 @@ Sign: the force is positive when it pulls the armature towards the pole (closing
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
-from .elements import inv2, symmetric_matrices, upper_pairs
+from .eggshell import EGGSHELL_M as EGGSHELL_M
+from .eggshell import eggshell_weight
+from .elements import symmetric_matrices
 from .geometry import Geometry
 from .linear_solver import SPDSolver
 from .material import NU_0, BHCurve
 from .mesh import MorphMesh, build_mesh
+from .quadrature import GapConfig, scatter_vector
+from .solution import Solution
 
 #: Gaps whose quadrature data a solver keeps (about 10 MB each at mesh size 2.0).
 CONFIG_CACHE = 16
@@ -62,7 +65,6 @@ NEWTON_MAXIT = 40
 #: below it and comparing energies is noise (an approximate Armijo condition, Hager & Zhang 2005). The solution is
 #: then within ~sqrt(64 eps) = 1e-7 in the energy norm, where the full Newton step converges quadratically.
 NEWTON_ENERGY_ROUNDING = 64.0
-EGGSHELL_M = 0.4e-3  # thickness of the air layer over which the Maxwell-stress weight falls to 0
 #: A Newton stall is accepted as converged (with a logged note) when the relative residual has stopped
 #: decreasing below this: the residual after an update shrunk to ``NEWTON_STALL_UPDATE`` of the solution norm
 #: still misses the target, or the iteration limit is reached and the best iterate's residual is below it. At a
@@ -79,97 +81,6 @@ log = logging.getLogger(__name__)
 
 class _NewtonFailure(SolverError):
     """Newton did not converge at one point (the retry in :meth:`Solver.solve` may still recover it)."""
-
-
-@dataclass
-class Solution:
-    """One operating point: current, gap, the nodal flux function and the results (SI)."""
-
-    i_A: float
-    x_m: float
-    u: np.ndarray
-    psi_Wb: float
-    force_coenergy_N: float
-    force_stress_N: float
-    coenergy_J: float
-    newton_iterations: int
-    residual_history: list = field(default_factory=list)
-    #: eps | |K_s| |u| + |f| | / |f| at the last iterate: the relative residual's rounding floor (see NEWTON_RTOL)
-    residual_floor: float = 0.0
-    note: str = ""  # how Newton got there when not by the plain tolerance (a stall accepted, a retry)
-
-    @property
-    def force_N(self) -> float:
-        """The force the maps carry: the co-energy derivative (paper eq. 3) [N]."""
-        return self.force_coenergy_N
-
-    def as_dict(self) -> dict:
-        """JSON-ready summary (the keys of ``solenoid-fmu solve --json``)."""
-        return {
-            "psi_Wb": self.psi_Wb,
-            "force_N": self.force_coenergy_N,
-            "force_coenergy_N": self.force_coenergy_N,
-            "force_stress_N": self.force_stress_N,
-            "coenergy_J": self.coenergy_J,
-            "newton_iterations": self.newton_iterations,
-            "x_mm": self.x_m * 1e3,
-            "i_A": self.i_A,
-        }
-
-
-class _Config:
-    """Everything that depends on the gap x: quadrature data on the morphed mesh."""
-
-    def __init__(self, solver: Solver, x_m: float):
-        from skfem import Basis, ElementTriP2, MeshTri  # loaded on first solve: importing the field stays cheaper
-
-        mm = solver.mesh
-        self.x_m = x_m
-        self.p = mm.points_at(x_m)
-        basis = Basis(MeshTri(self.p, mm.t), ElementTriP2(), intorder=4)
-        self.basis = basis
-        self.dx = basis.dx  # (nel, nq) quadrature weight * |detJ|
-        self.r = basis.mapping.F(basis.X)[0]  # (nel, nq) radius of each quadrature point
-        self.G = np.stack([basis.basis[k][0].grad for k in range(6)], axis=0)  # (6, 2, nel, nq)
-        self.phi = np.stack([np.asarray(basis.basis[k][0]) for k in range(6)], axis=0)  # (6, nel, nq)
-        self.w_over_r = self.dx / self.r
-        # products of basis gradients grad phi_k . grad phi_l, contracted once per gap (k <= l, per point)
-        self.GGu = upper_pairs(np.einsum("kdeq,ldeq->kleq", self.G, self.G))  # (nq, 21, nel)
-        # element Jacobians of the affine map and their x-derivative along the morph velocity
-        t = basis.mesh.t  # skfem may reorder the vertices within each element: use its order
-        p = self.p
-        self.J = np.array(
-            [[p[0, t[1]] - p[0, t[0]], p[0, t[2]] - p[0, t[0]]], [p[1, t[1]] - p[1, t[0]], p[1, t[2]] - p[1, t[0]]]]
-        )  # (2, 2, nel)
-        self.Jinv = inv2(self.J)
-        lam = np.array([1 - basis.X[0] - basis.X[1], basis.X[0], basis.X[1]])  # (3, nq) barycentric
-        self.lam = lam
-        # unit sources: f_coil = int J_coil(i=1 A) phi_k, f_fixed = int J from ampere_turn regions
-        self.f_coil = solver._assemble_source(self, solver.coil_density_per_A)
-        self.f_fixed = solver._assemble_source(self, solver.fixed_density)
-        coil = solver.coil_elements
-        self.psi_weights = _scatter_vector(
-            solver, self.phi[:, coil] * self.dx[coil][None], coil
-        ) * (2 * np.pi * solver.geometry.coil.turns / solver.coil_area)
-
-    def velocity_L(self, vr: np.ndarray, vz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """L = dJ J^-1 (2, 2, nel) and dr/dx at quadrature points for vertex velocities (vr, vz).
-
-        With g = J^-T g_ref: dg/dx = -L^T g and d(det J)/dx = det J tr(L).
-        """
-        t = self.basis.mesh.t
-        dJ = np.array(
-            [[vr[t[1]] - vr[t[0]], vr[t[2]] - vr[t[0]]], [vz[t[1]] - vz[t[0]], vz[t[2]] - vz[t[0]]]]
-        )
-        L = np.einsum("ijn,jkn->ikn", dJ, self.Jinv)
-        dr_q = np.einsum("vn,vq->nq", vr[t], self.lam)
-        return L, dr_q
-
-
-def _scatter_vector(solver: Solver, local: np.ndarray, elements: np.ndarray) -> np.ndarray:
-    """Sum element contributions local (6, nsel, nq) over quadrature points into a global vector."""
-    vals = local.sum(axis=-1)  # (6, nsel)
-    return np.bincount(solver.dofs[:, elements].ravel(), weights=vals.ravel(), minlength=solver.ndofs)
 
 
 class Solver:
@@ -241,7 +152,7 @@ class Solver:
         # the moving (armature) elements and the eggshell weight for the Maxwell-stress force
         self.moving_elements = np.isin(mm.region, [k for k, r in enumerate(geometry.regions) if r.moves])
         self._pattern(linear_backend)
-        self._configs: dict[float, _Config] = {}  # the last config_cache gaps, oldest first
+        self._configs: dict[float, GapConfig] = {}  # the last config_cache gaps, oldest first
         #: Gaps whose quadrature data are kept (default :data:`CONFIG_CACHE`; a caller that returns to more
         #: gaps, like the identification's force points and their +-dx, raises it).
         self.config_cache = CONFIG_CACHE
@@ -270,19 +181,20 @@ class Solver:
         self.dirichlet_mask = isdir
         self.linear_solver = SPDSolver(self._indptr, self._indices, n, linear_backend)
 
-    def _assemble_source(self, cfg: _Config, density: np.ndarray) -> np.ndarray:
+    def assemble_source(self, cfg: GapConfig, density: np.ndarray) -> np.ndarray:
+        """Load vector of a current density per element ``density`` [A/m^2] at the gap of ``cfg``."""
         sel = np.flatnonzero(density)
         if sel.size == 0:
             return np.zeros(self.ndofs)
         local = cfg.phi[:, sel] * (cfg.dx[sel] * density[sel, None])[None]
-        return _scatter_vector(self, local, sel)
+        return scatter_vector(self, local, sel)
 
-    def config(self, x_m: float) -> _Config:
+    def config(self, x_m: float) -> GapConfig:
         """Quadrature data at gap ``x_m`` (cached for the last ``config_cache`` gaps asked for: the
         identification returns to the same strokes and force offsets at every evaluation)."""
         cfg = self._configs.pop(x_m, None)
         if cfg is None:
-            cfg = _Config(self, x_m)
+            cfg = GapConfig(self, x_m)
             while len(self._configs) >= self.config_cache:
                 self._configs.pop(next(iter(self._configs)))
         self._configs[x_m] = cfg  # most recent last
@@ -302,13 +214,13 @@ class Solver:
         w[s] = self.material.energy_density(np.sqrt(b2[s]))
         return w
 
-    def grad(self, cfg: _Config, u: np.ndarray) -> np.ndarray:
+    def grad(self, cfg: GapConfig, u: np.ndarray) -> np.ndarray:
         """Gradient (d/dr, d/dz) of the flux function ``u`` at the quadrature points of ``cfg``,
         shape (2, elements, points); |B| = |grad u| / r."""
         ue = u[self.dofs]  # (6, nel)
         return np.einsum("ke,kdeq->deq", ue, cfg.G)  # (2, nel, nq)
 
-    def _energy(self, cfg: _Config, u: np.ndarray, f: np.ndarray, with_scale: bool = False):
+    def _energy(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray, with_scale: bool = False):
         """The energy functional / 2 pi; with ``with_scale``, also sum |r w dA| + |f| . |u| (its rounding scale)."""
         g = self.grad(cfg, u)
         b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r**2
@@ -428,62 +340,69 @@ class Solver:
         u = np.zeros(self.ndofs) if u0 is None else np.array(u0, dtype=float)
         u[self.dirichlet] = 0.0
         fnorm = np.linalg.norm(f[~self.dirichlet_mask])
-        free = ~self.dirichlet_mask
-        history = []
-        it = 0
-        note = ""
-        floor = 0.0
         self.solves += 1
         if fnorm == 0.0:
             u[:] = 0.0
+            it, history, floor, note = 0, [], 0.0, ""
         else:
-            energy, scale = self._energy(cfg, u, f, with_scale=True)
-            best, tiny_update = (np.inf, u, 0.0), False
-            for it in range(1, NEWTON_MAXIT + 1):
-                K, res, floor_rows = self._newton_system(cfg, u, f)
-                rnorm = np.linalg.norm(res[free]) / fnorm
-                floor = np.finfo(float).eps * np.linalg.norm(floor_rows[free]) / fnorm
-                history.append(rnorm)
-                if rnorm <= max(self.rtol or NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor):
-                    it -= 1
-                    break
-                if tiny_update and rnorm < NEWTON_STALL_RTOL:  # judged on the residual after the tiny update
-                    it -= 1
-                    note = self._stall_note(i_A, x_m, rnorm, floor,
-                                           f"after an update below {NEWTON_STALL_UPDATE:g} of the solution")
-                    break
-                if rnorm < best[0]:
-                    best = (rnorm, u, floor)
-                du = self.linear_solver.solve(K.data, K.indices, K.indptr, -res)
-                # Armijo backtracking on the convex energy, blind to its rounding (NEWTON_ENERGY_ROUNDING)
-                slope = res @ du
-                step = 1.0
-                for _ in range(30):
-                    trial = u + step * du
-                    e_trial, s_trial = self._energy(cfg, trial, f, with_scale=True)
-                    rounding = NEWTON_ENERGY_ROUNDING * np.finfo(float).eps * max(scale, s_trial)
-                    if e_trial <= energy + 1e-4 * step * slope + rounding or step < 1e-8:
-                        break
-                    step *= 0.5
-                u, energy, scale = trial, e_trial, s_trial
-                tiny_update = step * np.linalg.norm(du) <= NEWTON_STALL_UPDATE * max(np.linalg.norm(u), 1e-30)
-            else:
-                if best[0] >= NEWTON_STALL_RTOL:
-                    raise _NewtonFailure(
-                        f"Newton did not converge at i = {i_A:g} A, x = {x_m * 1e3:g} mm after {NEWTON_MAXIT} "
-                        f"iterations; relative residuals: {', '.join(f'{h:.2e}' for h in history)}"
-                    )
-                _, u, floor = best
-                note = self._stall_note(i_A, x_m, best[0], floor, f"best of {NEWTON_MAXIT} iterations")
+            u, it, history, floor, note = self._newton(cfg, u, f, fnorm, i_A, x_m)
         psi = float(cfg.psi_weights @ u)
         w_co = -2 * np.pi * self._energy(cfg, u, f) if fnorm else 0.0
         dens = i_A * self.coil_density_per_A + self.fixed_density
         F_co = F_st = float("nan")
         if forces:
             F_co = self._force_virtual_work(cfg, u, dens, self.mesh.dr_dx, self.mesh.dz_dx)
-            F_st = (self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), self._eggshell(cfg))
+            F_st = (self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), eggshell_weight(self, cfg))
                     if self.moving_elements.any() else 0.0)
         return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, residual_floor=floor, note=note)
+
+    def _newton(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray, fnorm: float, i_A: float, x_m: float):
+        """Newton's iterations of :meth:`_solve` from ``u`` (a nonzero load ``f``, its free-dof norm ``fnorm``):
+        the solution, the iterations, the relative residuals, the rounding floor and the note of a stall."""
+        free = ~self.dirichlet_mask
+        history = []
+        it = 0
+        note = ""
+        floor = 0.0
+        energy, scale = self._energy(cfg, u, f, with_scale=True)
+        best, tiny_update = (np.inf, u, 0.0), False
+        for it in range(1, NEWTON_MAXIT + 1):
+            K, res, floor_rows = self._newton_system(cfg, u, f)
+            rnorm = np.linalg.norm(res[free]) / fnorm
+            floor = np.finfo(float).eps * np.linalg.norm(floor_rows[free]) / fnorm
+            history.append(rnorm)
+            if rnorm <= max(self.rtol or NEWTON_RTOL, NEWTON_FLOOR_FACTOR * floor):
+                it -= 1
+                break
+            if tiny_update and rnorm < NEWTON_STALL_RTOL:  # judged on the residual after the tiny update
+                it -= 1
+                note = self._stall_note(i_A, x_m, rnorm, floor,
+                                       f"after an update below {NEWTON_STALL_UPDATE:g} of the solution")
+                break
+            if rnorm < best[0]:
+                best = (rnorm, u, floor)
+            du = self.linear_solver.solve(K.data, K.indices, K.indptr, -res)
+            # Armijo backtracking on the convex energy, blind to its rounding (NEWTON_ENERGY_ROUNDING)
+            slope = res @ du
+            step = 1.0
+            for _ in range(30):
+                trial = u + step * du
+                e_trial, s_trial = self._energy(cfg, trial, f, with_scale=True)
+                rounding = NEWTON_ENERGY_ROUNDING * np.finfo(float).eps * max(scale, s_trial)
+                if e_trial <= energy + 1e-4 * step * slope + rounding or step < 1e-8:
+                    break
+                step *= 0.5
+            u, energy, scale = trial, e_trial, s_trial
+            tiny_update = step * np.linalg.norm(du) <= NEWTON_STALL_UPDATE * max(np.linalg.norm(u), 1e-30)
+        else:
+            if best[0] >= NEWTON_STALL_RTOL:
+                raise _NewtonFailure(
+                    f"Newton did not converge at i = {i_A:g} A, x = {x_m * 1e3:g} mm after {NEWTON_MAXIT} "
+                    f"iterations; relative residuals: {', '.join(f'{h:.2e}' for h in history)}"
+                )
+            _, u, floor = best
+            note = self._stall_note(i_A, x_m, best[0], floor, f"best of {NEWTON_MAXIT} iterations")
+        return u, it, history, floor, note
 
     def _stall_note(self, i_A: float, x_m: float, rnorm: float, floor: float, why: str) -> str:
         """Log and return the note of a Newton stall accepted as converged (see ``NEWTON_STALL_RTOL``)."""
@@ -493,12 +412,12 @@ class Solver:
         log.info("FEM point i = %g A, x = %g mm: %s", i_A, x_m * 1e3, note)
         return note
 
-    def tangent(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
+    def tangent(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray):
         """Newton system at ``u`` for the load vector ``f``: the tangent stiffness (CSR, symmetric
         positive definite, Dirichlet rows set to the identity) and the residual (0 on Dirichlet dofs)."""
         return self._newton_system(cfg, u, f)[:2]
 
-    def _newton_system(self, cfg: _Config, u: np.ndarray, f: np.ndarray):
+    def _newton_system(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray):
         """:meth:`tangent` and, per dof, |K_s| |u| + |f|: the residual's rounding floor / eps (K_s the secant
         stiffness, whose product with u the residual's element sums add up)."""
         g = self.grad(cfg, u)  # (2, nel, nq)
@@ -520,26 +439,6 @@ class Solver:
         res[self.dirichlet_mask] = 0.0
         A = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.ndofs, self.ndofs))
         return A, res, floor_rows
-
-    def _eggshell(self, cfg: _Config) -> np.ndarray:
-        """Vertex weight g: 1 on the armature, 0 on all other bodies, falling across the air."""
-        mm = self.mesh
-        nv = mm.n_vertices
-        g = np.full(nv, np.nan)
-        body = ~self.moving_elements & (mm.region >= 0)
-        # air regions listed as polygons (material air, e.g. the ring) count as air
-        air_regions = [k for k, r in enumerate(self.geometry.regions) if r.material == "air" and not r.moves]
-        body &= ~np.isin(mm.region, air_regions)
-        g[mm.t[:, body].ravel()] = 0.0
-        g[mm.t[:, self.moving_elements].ravel()] = 1.0
-        free = np.isnan(g)
-        # distance of free (air) vertices to the armature's vertices, capped by the layer thickness
-        arm_v = np.unique(mm.t[:, self.moving_elements])
-        from scipy.spatial import cKDTree  # loaded on first use (about 0.2 s)
-
-        d, _ = cKDTree(cfg.p[:, arm_v].T).query(cfg.p[:, free].T)
-        g[free] = np.clip(1.0 - d / EGGSHELL_M, 0.0, 1.0)
-        return g
 
     def _force_virtual_work(self, cfg, u, density, vr, vz) -> float:
         """dPi/dx at fixed nodal values for vertex velocity (vr, vz): the force closing the gap [N].

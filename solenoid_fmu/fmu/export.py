@@ -145,29 +145,9 @@ def build_fmu(maps, dest_fmu, *, backend: str = "python", interface: str | None 
         Unknown backend or interface, exporter failure, or validation problems (all listed).
     """
     dest = check_output_name(dest_fmu)
-    if backend not in BACKENDS:
-        raise FmuBuildError(f"unknown FMU backend {backend!r}; available: {', '.join(BACKENDS)}")
-    spec = BACKENDS[backend]
-    interface = interface or spec.default_interface
-    if interface not in spec.descriptions:
-        raise FmuBuildError(f"the {backend} backend offers interface {' or '.join(spec.descriptions)}, "
-                            f"not {interface!r}")
-    description: BackendDescription = spec.descriptions[interface]
-    if fmi_version not in spec.fmi_versions:
-        raise FmuBuildError(f"the {backend} backend writes FMI {' or '.join(map(str, spec.fmi_versions))}, "
-                            f"not {fmi_version!r}" + ("; export --backend c for FMI 3" if backend != "c" else ""))
-    if dest.suffix.lower() != ".fmu":
-        raise FmuBuildError(f"{dest}: the output file must end in .fmu")
+    spec, description = _backend_for(backend, interface, fmi_version, dest)
     files, tables, maps_name = maps_payload(maps)
-    try:
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=".fmu", dir=dest.parent)
-    except (FileExistsError, NotADirectoryError):
-        raise
-    except OSError as exc:  # a read-only or full folder: name the FMU, not the hidden temporary file
-        raise write_failure(dest, exc) from None
-    os.close(fd)
-    tmp = Path(tmp_name)
+    tmp = _temporary_beside(dest)
     try:
         tool = spec.build(files, tmp, tables, **({"fmi_version": 3} if fmi_version == 3 else {}))
         finalize_model_description(tmp, tables=tables, maps_files=files, maps_name=maps_name, generation_tool=tool,
@@ -191,3 +171,35 @@ def build_fmu(maps, dest_fmu, *, backend: str = "python", interface: str | None 
         if tmp.exists():
             tmp.unlink()
     return dest
+
+
+def _backend_for(backend: str, interface: str | None, fmi_version: int, dest: Path):
+    """The backend of :func:`build_fmu` and its model description for ``interface``, checked with the FMI
+    version and the output name (else :class:`FmuBuildError`)."""
+    if backend not in BACKENDS:
+        raise FmuBuildError(f"unknown FMU backend {backend!r}; available: {', '.join(BACKENDS)}")
+    spec = BACKENDS[backend]
+    interface = interface or spec.default_interface
+    if interface not in spec.descriptions:
+        raise FmuBuildError(f"the {backend} backend offers interface {' or '.join(spec.descriptions)}, "
+                            f"not {interface!r}")
+    description: BackendDescription = spec.descriptions[interface]
+    if fmi_version not in spec.fmi_versions:
+        raise FmuBuildError(f"the {backend} backend writes FMI {' or '.join(map(str, spec.fmi_versions))}, "
+                            f"not {fmi_version!r}" + ("; export --backend c for FMI 3" if backend != "c" else ""))
+    if dest.suffix.lower() != ".fmu":
+        raise FmuBuildError(f"{dest}: the output file must end in .fmu")
+    return spec, description
+
+
+def _temporary_beside(dest: Path) -> Path:
+    """An empty temporary file beside ``dest`` (created with its folder) to build the FMU in."""
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=".fmu", dir=dest.parent)
+    except (FileExistsError, NotADirectoryError):
+        raise
+    except OSError as exc:  # a read-only or full folder: name the FMU, not the hidden temporary file
+        raise write_failure(dest, exc) from None
+    os.close(fd)
+    return Path(tmp_name)

@@ -82,38 +82,11 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
         def cb(n, rms):
             bar.update(1)
             bar.set_postfix_str(f"flux RMS {rms * 100:.3f} %")
-    force_recs = [r for r in recs if r.kind == "force_stroke"]
     try:
         if method == "auglag":  # the paper's method: one stroke, flux only
-            cc = commutation_curve(main)
-            i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
-            sigma = hysteresis_half_width(cc, i_sel)
-            res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method=method,
-                              progress=cb, sigma_Wb=sigma, **kwargs)
-            res.extra["recordings"] = [str(r.path) for r in main]
-            others_used = others
+            res, cc, others_used = _by_auglag(main, others, geom, start, mesh_size, cb, n_currents, kwargs)
         else:
-            eddy = [r for r in recs if r.kind == "eddy" and r.voltage_V is not None]
-            # the coil's heating rate from every current-driven recording at a fixed stroke (a ramp's hold pins it)
-            heat = [r for r in recs if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
-            pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy, heat_recs=heat)
-            fpts, fnotes = force_points(force_recs)
-            hold_recs = [r for r in recs if r.kind in HOLD_KINDS and r.voltage_V is not None]
-            remanence = max((float(np.max(d["half_width_Wb"], initial=0.0)) for d in details["strokes"].values()),
-                            default=0.0)
-            hpts, hnotes = hold_points(hold_recs, details["camp"], details["heated"], 2.0 * remanence)
-            fpts, fnotes = fpts + hpts, fnotes + hnotes
-            fit = identify_joint(pts + fpts, geom, start, mesh_size, progress=cb, **kwargs)
-            cc = details["strokes"][max(details["strokes"], key=lambda k: len(groups_of(flux)[k]))]["cc"]
-            res = result_from_joint(fit, start, mesh_size, {
-                "recordings": [str(r.path) for r in flux],
-                "force_recordings": [str(r.path) for r in force_recs],
-                "notes": notes + fnotes + [f"left out {why}" for why in unusable],
-                "G_eddy_loops_S": details["G_eddy_S"], "resistance": details["resistance"],
-                "resistance_tracks_used": details["heated"]})
-            others_used = ()
-            for w in res.extra["warnings"]:
-                print(f"identify: warning: {w}", file=sys.stderr)
+            res, cc, others_used = _by_joint_fit(recs, flux, unusable, geom, start, mesh_size, cb, n_currents, kwargs)
     finally:
         if bar is not None:
             bar.close()
@@ -125,3 +98,42 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
                      force_recordings=[r for r in recs if r.kind == "force_stroke"])
     return res
 
+
+def _by_auglag(main: list, others, geom, start, mesh_size: float, cb, n_currents: int, kwargs: dict):
+    """Method ``auglag`` of :func:`identify_from_recordings` (the paper's): the commutation curve at one stroke,
+    flux only. The result, the commutation curve and the other strokes' flux recordings for the report."""
+    cc = commutation_curve(main)
+    i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
+    sigma = hysteresis_half_width(cc, i_sel)
+    res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method="auglag",
+                      progress=cb, sigma_Wb=sigma, **kwargs)
+    res.extra["recordings"] = [str(r.path) for r in main]
+    return res, cc, others
+
+
+def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size: float, cb, n_currents: int,
+                  kwargs: dict):
+    """The joint fit of :func:`identify_from_recordings` (method ``gn``): flux points at every stroke, force and
+    hold points. The result, the commutation curve of the stroke with the most flux recordings, and ``()``."""
+    force_recs = [r for r in recs if r.kind == "force_stroke"]
+    eddy = [r for r in recs if r.kind == "eddy" and r.voltage_V is not None]
+    # the coil's heating rate from every current-driven recording at a fixed stroke (a ramp's hold pins it)
+    heat = [r for r in recs if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
+    pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy, heat_recs=heat)
+    fpts, fnotes = force_points(force_recs)
+    hold_recs = [r for r in recs if r.kind in HOLD_KINDS and r.voltage_V is not None]
+    remanence = max((float(np.max(d["half_width_Wb"], initial=0.0)) for d in details["strokes"].values()),
+                    default=0.0)
+    hpts, hnotes = hold_points(hold_recs, details["camp"], details["heated"], 2.0 * remanence)
+    fpts, fnotes = fpts + hpts, fnotes + hnotes
+    fit = identify_joint(pts + fpts, geom, start, mesh_size, progress=cb, **kwargs)
+    cc = details["strokes"][max(details["strokes"], key=lambda k: len(groups_of(flux)[k]))]["cc"]
+    res = result_from_joint(fit, start, mesh_size, {
+        "recordings": [str(r.path) for r in flux],
+        "force_recordings": [str(r.path) for r in force_recs],
+        "notes": notes + fnotes + [f"left out {why}" for why in unusable],
+        "G_eddy_loops_S": details["G_eddy_S"], "resistance": details["resistance"],
+        "resistance_tracks_used": details["heated"]})
+    for w in res.extra["warnings"]:
+        print(f"identify: warning: {w}", file=sys.stderr)
+    return res, cc, ()

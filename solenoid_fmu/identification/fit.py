@@ -32,6 +32,7 @@ Units: SI throughout (H in A/m, B in T, Psi in Wb, i in A, x in m).
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import nlopt
 import numpy as np
@@ -223,6 +224,28 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
     """
     from scipy.optimize import least_squares  # heavy (about 0.5 s): loaded on first use
 
+    i_A, psi_meas, sig = _measured_points(i_A, psi_Wb, sigma_Wb, method)
+    model0, theta_lit = fit_to_curve(start_curve, m=m)
+    scale = float(np.max(np.abs(psi_meas)))
+    t0 = time.perf_counter()
+    fm = FluxModel(geometry, x_m, i_A, model0.curve, mesh_size, start_curve)
+    flux_res = _FluxResiduals(fm, psi_meas, scale, sig, progress)
+    # the error before: the start curve itself
+    fm.curve_fn = lambda p: start_curve
+    psi0 = fm.psi(np.zeros(1))
+    extra: dict = {}
+    if method == "gn":
+        fitted = _fit_gn(flux_res, start_curve, m, max_nfev, regularization, stage2, extra, least_squares)
+    else:
+        fitted = _fit_auglag(flux_res, model0, theta_lit, m, max_eval_auglag, extra)
+    psi1 = fm.psi(fitted.theta)
+    wall = time.perf_counter() - t0
+    return _result(flux_res, fitted, start_curve, method, psi0, psi1, wall, x_m, mesh_size, extra)
+
+
+def _measured_points(i_A, psi_Wb, sigma_Wb, method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The measured points :func:`identify_bh` fits, checked: positive currents ascending, their fluxes and
+    uncertainties."""
     i_A = np.asarray(i_A, dtype=float)
     psi_meas = np.asarray(psi_Wb, dtype=float)
     if i_A.shape != psi_meas.shape or i_A.ndim != 1 or np.count_nonzero(i_A > 0) < 3:
@@ -238,116 +261,144 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
     keep = i_A > 0
     i_A, psi_meas, sig = i_A[keep], psi_meas[keep], sig[keep]
     order = np.argsort(i_A)
-    i_A, psi_meas, sig = i_A[order], psi_meas[order], sig[order]
-    model0, theta_lit = fit_to_curve(start_curve, m=m)
-    scale = float(np.max(np.abs(psi_meas)))
-    t0 = time.perf_counter()
-    history: list = []
-    fm = FluxModel(geometry, x_m, i_A, model0.curve, mesh_size, start_curve)
+    return i_A[order], psi_meas[order], sig[order]
 
-    s0 = FLUX_NOISE_FLOOR
-    weights = s0 / np.sqrt(s0**2 + (sig / scale) ** 2)
 
-    def flux_res(theta):
-        r = (fm.psi(theta) - psi_meas) / scale
-        history.append(float(np.sqrt(np.mean(r**2))))
-        if progress is not None:
-            progress(fm.sweeps, history[-1])
-        return r * weights
+class _FluxResiduals:
+    """The fit's flux residuals: FEM minus measured flux relative to the peak flux, weighted (one FEM sweep per
+    call; the unweighted RMS of each is appended to ``history`` and reported to ``progress``)."""
 
-    def wrms(r):
-        return float(np.sqrt(np.sum(r**2) / np.sum(weights**2)))
+    def __init__(self, fm: FluxModel, psi_meas: np.ndarray, scale: float, sig: np.ndarray, progress):
+        self.fm, self.psi_meas, self.scale, self.progress = fm, psi_meas, scale, progress
+        s0 = FLUX_NOISE_FLOOR
+        self.weights = s0 / np.sqrt(s0**2 + (sig / scale) ** 2)
+        self.history: list = []
 
-    # the error before: the start curve itself
-    fm.curve_fn = lambda p: start_curve
-    psi0 = fm.psi(np.zeros(1))
-    extra: dict = {}
-    if method == "gn":
-        # stage 1: polarization scale and H stretch of the start curve
-        fm.curve_fn = lambda p: scaled_curve(start_curve, p[0], p[1])
-        st1 = least_squares(flux_res, np.zeros(2), jac=lambda p: fm.jacobian(p, h=1e-3) * (weights / scale)[:, None],
-                            bounds=([np.log(0.7), np.log(0.2)], [np.log(1.3), np.log(5.0)]), method="trf",
-                            x_scale=1.0, max_nfev=12, xtol=1e-4, ftol=1e-4)
-        curve1 = scaled_curve(start_curve, *st1.x, name="identified")
-        rms_stage1 = wrms(flux_res(st1.x))
-        extra["stage1"] = {"polarization_scale": float(np.exp(st1.x[0])), "H_stretch": float(np.exp(st1.x[1])),
-                           "rms_rel_peak": rms_stage1, "sweeps": fm.sweeps}
-        model, theta1 = fit_to_curve(curve1, m=m)
-        lo, hi = model.bounds()
-        theta1 = np.clip(theta1, lo + 1e-9, hi - 1e-9)
-        theta0 = theta1
-        status = "stage 1 (scale and stretch): " + _LSQ_STATUS.get(st1.status, st1.message)
-        success = bool(st1.status > 0)
-        final_curve, theta = curve1, theta1
-        if stage2 and rms_stage1 > FLUX_NOISE_FLOOR and max_nfev > 0:
-            # stage 2: every parameter; prior = curvature of ln chi and the parameters near stage 1's
-            fm.curve_fn = model.curve
-            D = np.vstack([smoothness_matrix(model), PRIOR_RIDGE * np.eye(len(theta1))])
-            prior0 = D @ theta1
-            w = float(regularization)
+    def __call__(self, theta):
+        r = (self.fm.psi(theta) - self.psi_meas) / self.scale
+        self.history.append(float(np.sqrt(np.mean(r**2))))
+        if self.progress is not None:
+            self.progress(self.fm.sweeps, self.history[-1])
+        return r * self.weights
 
-            def residual(theta):
-                return np.concatenate([flux_res(theta), w * (D @ theta - prior0)])
+    def wrms(self, r):
+        """Weighted RMS of weighted residuals ``r``."""
+        return float(np.sqrt(np.sum(r**2) / np.sum(self.weights**2)))
 
-            def jac(theta):
-                return np.vstack([fm.jacobian(theta) * (weights / scale)[:, None], w * D])
 
-            res = projected_lm(residual, jac, theta1, lo, hi, max_nfev)
-            rms2 = wrms(flux_res(res.x))
-            extra["stage2"] = {"rms_rel_peak": rms2, "accepted": bool(rms2 < STAGE2_GAIN * rms_stage1),
-                               "status": _LSQ_STATUS.get(res.status, res.message)}
-            if rms2 < STAGE2_GAIN * rms_stage1:
-                final_curve, theta = model.curve(res.x), res.x
-                status = "stage 2 (all parameters): " + _LSQ_STATUS.get(res.status, res.message)
-                success = bool(res.status >= 0)
-        fm.curve_fn = lambda p: final_curve
-    else:
-        model = model0
-        lo, hi = model.bounds()
-        theta0 = np.clip(theta_lit, lo + 1e-9, hi - 1e-9)
+class _Fitted(NamedTuple):
+    """What a method of :func:`identify_bh` found: the parameterization, the start and final parameters, the
+    final curve, the status in words and whether it counts as a success."""
+
+    model: object
+    theta0: np.ndarray
+    theta: np.ndarray
+    curve: BHCurve
+    status: str
+    success: bool
+
+
+def _fit_gn(flux_res: _FluxResiduals, start_curve: BHCurve, m: int, max_nfev: int, regularization: float,
+            stage2: bool, extra: dict, least_squares) -> _Fitted:
+    """Method ``gn`` of :func:`identify_bh`: stage 1 (scale and stretch), then stage 2 (all parameters) if it
+    pays; ``extra`` gains ``stage1`` and ``stage2``."""
+    fm, weights, scale, wrms = flux_res.fm, flux_res.weights, flux_res.scale, flux_res.wrms
+    # stage 1: polarization scale and H stretch of the start curve
+    fm.curve_fn = lambda p: scaled_curve(start_curve, p[0], p[1])
+    st1 = least_squares(flux_res, np.zeros(2), jac=lambda p: fm.jacobian(p, h=1e-3) * (weights / scale)[:, None],
+                        bounds=([np.log(0.7), np.log(0.2)], [np.log(1.3), np.log(5.0)]), method="trf",
+                        x_scale=1.0, max_nfev=12, xtol=1e-4, ftol=1e-4)
+    curve1 = scaled_curve(start_curve, *st1.x, name="identified")
+    rms_stage1 = wrms(flux_res(st1.x))
+    extra["stage1"] = {"polarization_scale": float(np.exp(st1.x[0])), "H_stretch": float(np.exp(st1.x[1])),
+                       "rms_rel_peak": rms_stage1, "sweeps": fm.sweeps}
+    model, theta1 = fit_to_curve(curve1, m=m)
+    lo, hi = model.bounds()
+    theta1 = np.clip(theta1, lo + 1e-9, hi - 1e-9)
+    theta0 = theta1
+    status = "stage 1 (scale and stretch): " + _LSQ_STATUS.get(st1.status, st1.message)
+    success = bool(st1.status > 0)
+    final_curve, theta = curve1, theta1
+    if stage2 and rms_stage1 > FLUX_NOISE_FLOOR and max_nfev > 0:
+        # stage 2: every parameter; prior = curvature of ln chi and the parameters near stage 1's
         fm.curve_fn = model.curve
-        P = model.n_params
-        best = {"f": np.inf, "x": theta0.copy()}
+        D = np.vstack([smoothness_matrix(model), PRIOR_RIDGE * np.eye(len(theta1))])
+        prior0 = D @ theta1
+        w = float(regularization)
 
-        def objective(theta, grad):
-            f = float(np.sum(np.abs(flux_res(np.asarray(theta)))) / np.sum(weights))
-            extra.setdefault("auglag_mae_at_start_parameters", f)
-            if f < best["f"] and constraint_values(model, theta).max() <= 1e-6:
-                best.update(f=f, x=np.array(theta))
-            return f
+        def residual(theta):
+            return np.concatenate([flux_res(theta), w * (D @ theta - prior0)])
 
-        def constraints(result, theta, grad):
-            result[:] = constraint_values(model, theta)
+        def jac(theta):
+            return np.vstack([fm.jacobian(theta) * (weights / scale)[:, None], w * D])
 
-        opt = nlopt.opt(nlopt.AUGLAG, P)
-        local = nlopt.opt(nlopt.LN_BOBYQA, P)
-        local.set_xtol_rel(1e-4)
-        opt.set_local_optimizer(local)
-        box_lo = np.where(np.isfinite(lo), lo, -10.0)
-        box_hi = np.where(np.isfinite(hi), hi, 10.0)
-        box_lo[1:m], box_hi[1:m] = -10.0, 10.0  # the monotonicity is a constraint here, not a bound
-        box_lo[m], box_hi[m] = -6.0, 0.0
-        opt.set_lower_bounds(box_lo)
-        opt.set_upper_bounds(box_hi)
-        opt.set_min_objective(objective)
-        opt.add_inequality_mconstraint(constraints, np.full(m, 1e-6))
-        opt.set_maxeval(int(max_eval_auglag))
-        opt.set_xtol_rel(1e-4)
-        opt.set_initial_step(0.05)
-        try:
-            theta = np.asarray(opt.optimize(np.clip(theta0, box_lo, box_hi)))
-            code = opt.last_optimize_result()
-        except nlopt.RoundoffLimited:
-            theta, code = best["x"], -4
-        f_end = np.sum(np.abs(flux_res(theta))) / np.sum(weights)
-        if constraint_values(model, theta).max() > 1e-6 or best["f"] < f_end:
-            theta = best["x"]  # the best feasible point seen
-        status = nlopt_code_name(code)
-        success = code > 0
-        final_curve = model.curve(theta)
-        fm.curve_fn = model.curve
-    psi1 = fm.psi(theta)
-    wall = time.perf_counter() - t0
+        res = projected_lm(residual, jac, theta1, lo, hi, max_nfev)
+        rms2 = wrms(flux_res(res.x))
+        extra["stage2"] = {"rms_rel_peak": rms2, "accepted": bool(rms2 < STAGE2_GAIN * rms_stage1),
+                           "status": _LSQ_STATUS.get(res.status, res.message)}
+        if rms2 < STAGE2_GAIN * rms_stage1:
+            final_curve, theta = model.curve(res.x), res.x
+            status = "stage 2 (all parameters): " + _LSQ_STATUS.get(res.status, res.message)
+            success = bool(res.status >= 0)
+    fm.curve_fn = lambda p: final_curve
+    return _Fitted(model, theta0, theta, final_curve, status, success)
+
+
+def _fit_auglag(flux_res: _FluxResiduals, model, theta_lit: np.ndarray, m: int, max_eval_auglag: int,
+                extra: dict) -> _Fitted:
+    """Method ``auglag`` of :func:`identify_bh` (the paper's): nlopt AUGLAG around LN_BOBYQA from the start
+    curve; the best feasible point seen if the optimizer ends elsewhere."""
+    fm, weights = flux_res.fm, flux_res.weights
+    lo, hi = model.bounds()
+    theta0 = np.clip(theta_lit, lo + 1e-9, hi - 1e-9)
+    fm.curve_fn = model.curve
+    P = model.n_params
+    best = {"f": np.inf, "x": theta0.copy()}
+
+    def objective(theta, grad):
+        f = float(np.sum(np.abs(flux_res(np.asarray(theta)))) / np.sum(weights))
+        extra.setdefault("auglag_mae_at_start_parameters", f)
+        if f < best["f"] and constraint_values(model, theta).max() <= 1e-6:
+            best.update(f=f, x=np.array(theta))
+        return f
+
+    def constraints(result, theta, grad):
+        result[:] = constraint_values(model, theta)
+
+    opt = nlopt.opt(nlopt.AUGLAG, P)
+    local = nlopt.opt(nlopt.LN_BOBYQA, P)
+    local.set_xtol_rel(1e-4)
+    opt.set_local_optimizer(local)
+    box_lo = np.where(np.isfinite(lo), lo, -10.0)
+    box_hi = np.where(np.isfinite(hi), hi, 10.0)
+    box_lo[1:m], box_hi[1:m] = -10.0, 10.0  # the monotonicity is a constraint here, not a bound
+    box_lo[m], box_hi[m] = -6.0, 0.0
+    opt.set_lower_bounds(box_lo)
+    opt.set_upper_bounds(box_hi)
+    opt.set_min_objective(objective)
+    opt.add_inequality_mconstraint(constraints, np.full(m, 1e-6))
+    opt.set_maxeval(int(max_eval_auglag))
+    opt.set_xtol_rel(1e-4)
+    opt.set_initial_step(0.05)
+    try:
+        theta = np.asarray(opt.optimize(np.clip(theta0, box_lo, box_hi)))
+        code = opt.last_optimize_result()
+    except nlopt.RoundoffLimited:
+        theta, code = best["x"], -4
+    f_end = np.sum(np.abs(flux_res(theta))) / np.sum(weights)
+    if constraint_values(model, theta).max() > 1e-6 or best["f"] < f_end:
+        theta = best["x"]  # the best feasible point seen
+    final_curve = model.curve(theta)
+    fm.curve_fn = model.curve
+    return _Fitted(model, theta0, theta, final_curve, nlopt_code_name(code), code > 0)
+
+
+def _result(flux_res: _FluxResiduals, fitted: _Fitted, start_curve: BHCurve, method: str, psi0: np.ndarray,
+            psi1: np.ndarray, wall: float, x_m: float, mesh_size: float, extra: dict) -> IdentificationResult:
+    """The :class:`IdentificationResult` of :func:`identify_bh`: errors before and after, the identified H range
+    and the uncertainty of B (sensitivities in the nodal parameterization)."""
+    fm, psi_meas, scale, weights = flux_res.fm, flux_res.psi_meas, flux_res.scale, flux_res.weights
+    model, theta, i_A = fitted.model, fitted.theta, fm.i_A
     e0, e1 = (psi0 - psi_meas) / scale, (psi1 - psi_meas) / scale
     fm.curve_fn = model.curve  # sensitivities in the nodal parameterization (a close fit of the final curve)
     J = fm.jacobian(theta) * (weights / scale)[:, None]
@@ -356,16 +407,16 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
     cum = np.cumsum(vol[order_h]) / vol.sum()
     H_max = float(H_steel[order_h][np.searchsorted(cum, 0.995)])  # the 0.5 % most loaded volume aside
     rms1 = float(np.sqrt(np.mean(e1**2)))
-    rng, H_u, unc = identified_range(model, theta, J, wrms(e1 * weights), H_max)
+    rng, H_u, unc = identified_range(model, theta, J, flux_res.wrms(e1 * weights), H_max)
     extra["weights"] = [float(v) for v in weights]
     extra["B_uncertainty"] = {"H_A_per_m": [float(v) for v in H_u], "rel_1sigma": [float(v) for v in unc]}
     return IdentificationResult(
-        curve=final_curve, start_curve=start_curve, theta=theta, theta_start=theta0,
-        model=model, method=method, success=success, status=status, fem_solves=fm.solves,
+        curve=fitted.curve, start_curve=start_curve, theta=theta, theta_start=fitted.theta0,
+        model=model, method=method, success=fitted.success, status=fitted.status, fem_solves=fm.solves,
         newton_steps=fm.newton_steps, adjoint_solves=fm.adjoint_solves, sweeps=fm.solves / len(i_A),
         equivalent_sweeps=fm.equivalent_sweeps, wall_time_s=wall, x_m=float(x_m), i_A=i_A, psi_meas_Wb=psi_meas,
         psi_before_Wb=psi0, psi_after_Wb=psi1,
         mae_before=float(np.mean(np.abs(e0))), rms_before=float(np.sqrt(np.mean(e0**2))),
         mae_after=float(np.mean(np.abs(e1))), rms_after=rms1, mesh_size=float(mesh_size),
         identified_H_range_A_per_m=rng, H_max_steel_A_per_m=H_max,
-        constraint_residuals=constraint_residuals(model, theta), history=history, extra=extra)
+        constraint_residuals=constraint_residuals(model, theta), history=flux_res.history, extra=extra)

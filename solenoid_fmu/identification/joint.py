@@ -207,7 +207,26 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev:
 
     pred_start = pm.values(np.zeros(1))
     cands = {}
-    # stage 1
+    curve1 = _stage1(res, jac, pm, start_curve, max_nfev, groups, cands)
+    model, v1, J_last = _stage2(res, jac, pm, curve1, max_nfev, groups, cands)
+    theta1 = node_theta(v1)
+    for c in cands.values():
+        c["rms_in"] = float(np.sqrt(np.mean(c["r"] ** 2)))
+        c["rms_out"] = float(np.sqrt(np.mean(c["r_out"] ** 2)))
+    best = min(cands, key=lambda k: cands[k]["rms_out"])
+    theta_final, J_final = J_last
+    return JointFit(curve=cands[best]["curve"], chosen=best, candidates=cands, model=with_peak_of(model, theta_final),
+                    theta=theta_final,
+                    J_w=J_final, theta_stage1=theta1, pred_start=pred_start, pred=cands[best]["pred"],
+                    meas=meas, sigma=sig, groups=groups, points=list(points), evaluations=pm.evaluations,
+                    solves=pm.solves, newton_steps=pm.newton_steps, adjoint_solves=pm.adjoint_solves,
+                    equivalent_evaluations=pm.equivalent_evaluations, history=history,
+                    wall_time_s=time.perf_counter() - t0, point_model=pm)
+
+
+def _stage1(res, jac, pm: PointModel, start_curve, max_nfev: int, groups: np.ndarray, cands: dict):
+    """Stage 1 of :func:`identify_joint`: the start curve's polarization scaled and stretched along H (two
+    parameters); adds its candidate to ``cands`` and returns its curve."""
     pm.curve_fn = lambda p: scaled_curve(start_curve, p[0], p[1])
     lo1 = np.log([STAGE1_SCALE[0], STAGE1_STRETCH[0]])
     hi1 = np.log([STAGE1_SCALE[1], STAGE1_STRETCH[1]])
@@ -221,6 +240,13 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev:
                         "pred": pm.values(st1.x), "params": {"polarization_scale": float(np.exp(st1.x[0])),
                                                             "H_stretch": float(np.exp(st1.x[1]))},
                         "status": st1.message}
+    return curve1
+
+
+def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray, cands: dict):
+    """Stage 2 of :func:`identify_joint`: the node values, once per prior weight of :data:`PRIOR_WEIGHTS`,
+    each run from the one before; adds their candidates to ``cands``. Returns the node model, stage 1's
+    node values and (parameters, weighted Jacobian) of the last run."""
     # stage 2, in node values v = (ln chi at the nodes, tail slope): each parameter acts locally, the
     # unimodal projection is an isotonic fit of v itself, the prior a second difference of v
     model, theta1 = fit_to_curve(curve1, H_nodes=stage2_nodes(curve1))
@@ -256,16 +282,4 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev:
             "r_out": held_out_residuals(J2, r2, groups, w * D, w * (D @ st2.x - prior0), st2.x, project),
             "pred": pm.values(st2.x), "theta": theta2, "status": st2.message}
         v_start = st2.x
-    theta1 = node_theta(v1)
-    for c in cands.values():
-        c["rms_in"] = float(np.sqrt(np.mean(c["r"] ** 2)))
-        c["rms_out"] = float(np.sqrt(np.mean(c["r_out"] ** 2)))
-    best = min(cands, key=lambda k: cands[k]["rms_out"])
-    theta_final, J_final = J_last
-    return JointFit(curve=cands[best]["curve"], chosen=best, candidates=cands, model=with_peak_of(model, theta_final),
-                    theta=theta_final,
-                    J_w=J_final, theta_stage1=theta1, pred_start=pred_start, pred=cands[best]["pred"],
-                    meas=meas, sigma=sig, groups=groups, points=list(points), evaluations=pm.evaluations,
-                    solves=pm.solves, newton_steps=pm.newton_steps, adjoint_solves=pm.adjoint_solves,
-                    equivalent_evaluations=pm.equivalent_evaluations, history=history,
-                    wall_time_s=time.perf_counter() - t0, point_model=pm)
+    return model, v1, J_last

@@ -16,7 +16,7 @@ Metrics per recording and signal (:func:`signal_metrics`), with ``e = measured -
   over the whole campaign. Unlike ``nrmse`` it cannot blow up for a recording whose signal
   hardly changes (a force-stroke at constant current has a flux range near zero), and the cap
   at 1 keeps one broken recording from outweighing the others. The improve gate
-  (:func:`solenoid_fmu.loop.improvement._error`) and the reports' mean errors use it.
+  (:func:`solenoid_fmu.loop.gates.gate_error`) and the reports' mean errors use it.
 
 Samples where the measured or simulated value is not finite are left out and counted
 (``n_excluded``); a simulation that is not finite anywhere gives ``None`` metrics.

@@ -33,39 +33,50 @@ def plot_maps(maps: CharacteristicMaps, directory) -> list[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     out = []
-    X, P = np.meshgrid(maps.x_m * 1e3, maps.psi_Wb * 1e3)
-    ext = maps.extrapolated > 0
     colors = cm.viridis(np.linspace(0, 1, len(maps.x_m)))
     for fname, table, zlabel, title in (
         ("force_psi_x.png", maps.force_N, "force F [N]", "F(Psi, x) (cf. paper fig. 12)"),
         ("i_f_psi_x.png", maps.i_f_A, "field current i_f [A]", "i_f(Psi, x) (cf. paper fig. 13)"),
     ):
-        fig = plt.figure(figsize=(12, 5))
-        ax = fig.add_subplot(1, 2, 1, projection="3d")
-        face = cm.viridis((table - table.min()) / max(np.ptp(table), 1e-300))
-        face[ext] = (0.75, 0.75, 0.75, 0.6)
-        stride = max(1, len(maps.psi_Wb) // 60)
-        ax.plot_surface(X[::stride], P[::stride], table[::stride], facecolors=face[::stride],
-                        rstride=1, cstride=1, linewidth=0, antialiased=False, shade=False)
-        ax.set_xlabel("x [mm]")
-        ax.set_ylabel("Psi [mWb]")
-        ax.set_zlabel(zlabel)
-        ax.set_title(title + "; grey = extrapolated")
-        ax2 = fig.add_subplot(1, 2, 2)
-        for j, x in enumerate(maps.x_m):
-            inside = ~ext[:, j]
-            ax2.plot(maps.psi_Wb[inside] * 1e3, table[inside, j], color=colors[j], label=f"{x * 1e3:.2f} mm")
-            ax2.plot(maps.psi_Wb[~inside] * 1e3, table[~inside, j], color=colors[j], ls="--", lw=0.8)
-        ax2.set_xlabel("flux linkage Psi [mWb]")
-        ax2.set_ylabel(zlabel)
-        ax2.grid(True, alpha=0.3)
-        ax2.legend(fontsize=6, ncol=2, title="x")
-        fig.tight_layout()
-        path = directory / fname
-        save_figure(fig, path, dpi=110)
-        plt.close(fig)
-        out.append(path)
+        out.append(_plot_table(plt, cm, maps, table, zlabel, title, colors, directory / fname))
+    out.append(_plot_psi_force_of_i(plt, maps, colors, directory / "psi_i_per_x.png"))
+    out.append(_plot_force_of_x(plt, cm, maps, directory / "force_x_per_i.png"))
+    return out
 
+
+def _plot_table(plt, cm, maps: CharacteristicMaps, table: np.ndarray, zlabel: str, title: str, colors,
+                path: Path) -> Path:
+    """One table over (Psi, x): a surface (extrapolated grey) and a curve per position (extrapolated dashed)."""
+    X, P = np.meshgrid(maps.x_m * 1e3, maps.psi_Wb * 1e3)
+    ext = maps.extrapolated > 0
+    fig = plt.figure(figsize=(12, 5))
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    face = cm.viridis((table - table.min()) / max(np.ptp(table), 1e-300))
+    face[ext] = (0.75, 0.75, 0.75, 0.6)
+    stride = max(1, len(maps.psi_Wb) // 60)
+    ax.plot_surface(X[::stride], P[::stride], table[::stride], facecolors=face[::stride],
+                    rstride=1, cstride=1, linewidth=0, antialiased=False, shade=False)
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("Psi [mWb]")
+    ax.set_zlabel(zlabel)
+    ax.set_title(title + "; grey = extrapolated")
+    ax2 = fig.add_subplot(1, 2, 2)
+    for j, x in enumerate(maps.x_m):
+        inside = ~ext[:, j]
+        ax2.plot(maps.psi_Wb[inside] * 1e3, table[inside, j], color=colors[j], label=f"{x * 1e3:.2f} mm")
+        ax2.plot(maps.psi_Wb[~inside] * 1e3, table[~inside, j], color=colors[j], ls="--", lw=0.8)
+    ax2.set_xlabel("flux linkage Psi [mWb]")
+    ax2.set_ylabel(zlabel)
+    ax2.grid(True, alpha=0.3)
+    ax2.legend(fontsize=6, ncol=2, title="x")
+    fig.tight_layout()
+    save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _plot_psi_force_of_i(plt, maps: CharacteristicMaps, colors, path: Path) -> Path:
+    """Psi(i) and F(i) per position: the FEM points and the interpolant."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5))
     ii = np.linspace(maps.i_A[0], maps.i_A[-1], 200)
     for j, x in enumerate(maps.x_m):
@@ -83,11 +94,13 @@ def plot_maps(maps: CharacteristicMaps, directory) -> list[Path]:
     for ax in axes:
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    path = directory / "psi_i_per_x.png"
     save_figure(fig, path, dpi=110)
     plt.close(fig)
-    out.append(path)
+    return path
 
+
+def _plot_force_of_x(plt, cm, maps: CharacteristicMaps, path: Path) -> Path:
+    """F over the stroke per current (co-energy and Maxwell stress), the working range shaded."""
     fig, ax = plt.subplots(figsize=(7, 5))
     xx = np.linspace(maps.x_m[0], maps.x_m[-1], 200)
     currents = np.linspace(maps.i_A[0], maps.i_A[-1], 6)[1:]
@@ -104,10 +117,8 @@ def plot_maps(maps: CharacteristicMaps, directory) -> list[Path]:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    path = directory / "force_x_per_i.png"
     save_figure(fig, path, dpi=110)
     plt.close(fig)
-    out.append(path)
-    return out
+    return path
 
 

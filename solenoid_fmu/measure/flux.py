@@ -386,38 +386,9 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
     """
     if not recordings:
         raise RecordingError("commutation_curve", ["no recordings given"])
+    positions = _common_stroke(recordings)
+    camp = _campaign_of(recordings, resistance)
     problems = []
-    positions = []
-    for rec in recordings:
-        if rec.kind != "flux":
-            problems.append(f"{rec.label()}: kind {rec.kind!r}, commutation curves need 'flux' recordings")
-            continue
-        x = rec.positions_m()
-        if float(np.ptp(x)) > 1e-6:
-            problems.append(f"{rec.label()}: the stroke moves by {np.ptp(x) * 1e3:.4f} mm "
-                            "during the recording")
-        positions.append(float(np.median(x)))
-    names = {rec.solenoid for rec in recordings}
-    if len(names) > 1:
-        problems.append(f"recordings of different solenoids: {', '.join(sorted(names))}")
-    if positions and max(positions) - min(positions) > 1e-6:
-        problems.append("recordings at different strokes: "
-                        + ", ".join(f"{x * 1e3:.4f} mm" for x in positions))
-    if problems:
-        raise RecordingError("commutation_curve", problems)
-    camp = None
-    if isinstance(resistance, CampaignResistance):
-        camp = resistance
-    elif resistance == "track":
-        camp = campaign_resistance(recordings)
-    elif resistance is not None:
-        raise RecordingError("commutation_curve", [f"resistance must be None, 'track' or a CampaignResistance, "
-                                                   f"got {resistance!r}"])
-    if camp is not None:
-        missing = [rec.label() for rec in recordings if camp.track_for(rec) is None]
-        if missing:
-            why = {lab: camp.skipped.get(lab, "not in the campaign fit") for lab in missing}
-            raise RecordingError("commutation_curve", [f"{lab}: no resistance track ({w})" for lab, w in why.items()])
     results = [flux_linkage(rec, R_ohm, n_points=n_points,
                             resistance=None if camp is None else camp.track_for(rec)) for rec in recordings]
     for rec, res in zip(recordings, results, strict=True):
@@ -443,3 +414,46 @@ def commutation_curve(recordings: list[Recording], n_points: int = 101,
                             peak_currents_A=[br.peak_A for br in branches[::2]], results=results,
                             resistance=camp)
 
+
+def _common_stroke(recordings: list[Recording]) -> list[float]:
+    """The median stroke of each recording [m], checked: ``flux`` recordings of one solenoid at one fixed stroke
+    (else :class:`RecordingError`)."""
+    problems = []
+    positions = []
+    for rec in recordings:
+        if rec.kind != "flux":
+            problems.append(f"{rec.label()}: kind {rec.kind!r}, commutation curves need 'flux' recordings")
+            continue
+        x = rec.positions_m()
+        if float(np.ptp(x)) > 1e-6:
+            problems.append(f"{rec.label()}: the stroke moves by {np.ptp(x) * 1e3:.4f} mm "
+                            "during the recording")
+        positions.append(float(np.median(x)))
+    names = {rec.solenoid for rec in recordings}
+    if len(names) > 1:
+        problems.append(f"recordings of different solenoids: {', '.join(sorted(names))}")
+    if positions and max(positions) - min(positions) > 1e-6:
+        problems.append("recordings at different strokes: "
+                        + ", ".join(f"{x * 1e3:.4f} mm" for x in positions))
+    if problems:
+        raise RecordingError("commutation_curve", problems)
+    return positions
+
+
+def _campaign_of(recordings: list[Recording], resistance) -> CampaignResistance | None:
+    """The resistance tracks :func:`commutation_curve` uses (None: one R per recording), with a track for every
+    recording (else :class:`RecordingError`)."""
+    camp = None
+    if isinstance(resistance, CampaignResistance):
+        camp = resistance
+    elif resistance == "track":
+        camp = campaign_resistance(recordings)
+    elif resistance is not None:
+        raise RecordingError("commutation_curve", [f"resistance must be None, 'track' or a CampaignResistance, "
+                                                   f"got {resistance!r}"])
+    if camp is not None:
+        missing = [rec.label() for rec in recordings if camp.track_for(rec) is None]
+        if missing:
+            why = {lab: camp.skipped.get(lab, "not in the campaign fit") for lab in missing}
+            raise RecordingError("commutation_curve", [f"{lab}: no resistance track ({w})" for lab, w in why.items()])
+    return camp

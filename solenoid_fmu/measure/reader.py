@@ -220,7 +220,33 @@ def _parse_lines(lines: list[str], chunks, where: str, path: Path, probs: _Probl
         probs.add(1, "empty file: no header and no column line")
         return probs.listing(), None
 
-    # header -------------------------------------------------------------------------------
+    header, header_line, idx = _read_header(lines, probs)
+    if idx >= len(lines):
+        probs.add(len(lines), "no column line after the header (expected e.g. 'time_s,voltage_V,current_A')")
+        _check_header(header, header_line, probs, None, set())
+        return probs.listing(), None
+
+    # column line ----------------------------------------------------------------------------
+    col_lineno = idx + 1
+    col_line = lines[idx]
+    first_data = idx + 2  # line number of the first data row
+    first_chunk = next(chunks, ([], first_data))[0]
+    names, delimiter_ok = _read_columns(col_line, col_lineno, first_chunk, first_data, probs)
+    columns = set(names) if delimiter_ok else set()
+    _check_header(header, header_line, probs, col_lineno, columns)
+
+    # data -----------------------------------------------------------------------------------
+    if not delimiter_ok or (not first_chunk and probs):
+        return probs.listing(), None
+    if not first_chunk:
+        probs.add(col_lineno, "no data rows after the column line")
+        return probs.listing(), None
+    return _read_data(names, header, first_chunk, first_data, chunks, where, path, probs)
+
+
+def _read_header(lines: list[str], probs: _Problems) -> tuple[dict[str, str], dict[str, int], int]:
+    """The header lines at the start of ``lines``: key -> value, key -> line number, and the index of the first
+    line after them."""
     header: dict[str, str] = {}
     header_line: dict[str, int] = {}
     idx = 0
@@ -241,16 +267,13 @@ def _parse_lines(lines: list[str], chunks, where: str, path: Path, probs: _Probl
             continue
         header[key] = value.strip()
         header_line[key] = lineno
-    if idx >= len(lines):
-        probs.add(len(lines), "no column line after the header (expected e.g. 'time_s,voltage_V,current_A')")
-        _check_header(header, header_line, probs, None, set())
-        return probs.listing(), None
+    return header, header_line, idx
 
-    # column line ----------------------------------------------------------------------------
-    col_lineno = idx + 1
-    col_line = lines[idx]
-    first_data = idx + 2  # line number of the first data row
-    first_chunk = next(chunks, ([], first_data))[0]
+
+def _read_columns(col_line: str, col_lineno: int, first_chunk: list[str], first_data: int,
+                  probs: _Problems) -> tuple[list[str], bool]:
+    """The column names of the column line, checked, and whether its delimiter is the format's (else a wrong
+    delimiter, and a decimal comma in the first data rows, are listed)."""
     delimiter_ok = True
     names = [c.strip() for c in col_line.split(",")]
     if len(names) == 1:
@@ -285,15 +308,12 @@ def _parse_lines(lines: list[str], chunks, where: str, path: Path, probs: _Probl
             missing = [c for c in ("time_s", "current_A") if c not in seen]
             probs.add(col_lineno, f"missing column(s) {', '.join(missing)} "
                                   "(every recording has time_s and current_A)")
-    columns = set(names) if delimiter_ok else set()
-    _check_header(header, header_line, probs, col_lineno, columns)
+    return names, delimiter_ok
 
-    # data -----------------------------------------------------------------------------------
-    if not delimiter_ok or (not first_chunk and probs):
-        return probs.listing(), None
-    if not first_chunk:
-        probs.add(col_lineno, "no data rows after the column line")
-        return probs.listing(), None
+
+def _read_data(names: list[str], header: dict[str, str], first_chunk: list[str], first_data: int, chunks,
+               where: str, path: Path, probs: _Problems):
+    """The data rows of the first block and of the further ``chunks``, checked; the recording (or the problems)."""
     t_col = names.index("time_s") if "time_s" in names else None
     k_pos = names.index("position_mm") if "position_mm" in names else None
     parts: list[np.ndarray] = []

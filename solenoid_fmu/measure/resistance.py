@@ -51,9 +51,19 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import RecordingError
-from .branches import branch_on_grid, split_branches
-from .conditioning import Conditioned, condition, noise_std
 from .format import Recording
+from .resistance_equations import (
+    TAU_MODEL_S,
+    Equations,
+    data_block,
+    equations,
+    fit_one,
+    model_error,
+    prepare,
+    scale_of,
+    solve_wls,
+    start_R,
+)
 
 __all__ = ["HEADER_SIGMA_REL", "HEADER_OFF_SIGMAS", "KAPPA_PRIOR_PER_J", "PINNED_REL", "CLOSURE_FACTOR",
            "ResistanceTrack", "CampaignResistance", "resistance_track", "campaign_resistance", "closure_problems"]
@@ -71,11 +81,6 @@ KAPPA_PRIOR_PER_J = 0.00393 / 10.0
 PINNED_REL = 0.003
 #: Closure residuals this many times what the noise explains are a data problem.
 CLOSURE_FACTOR = 5.0
-#: Shortest thermal time constant the adiabatic model is meant for [s] (sets its model error).
-TAU_MODEL_S = 60.0
-_PLATEAU_PARTS = 4  # equations per plateau
-_MIN_BRANCH = 50  # samples a branch needs for closure (coarser ones interpolate the loop too roughly)
-_PEAK_TOL = 0.003  # peaks within 0.3 % (or 4 sigma of the current noise) count as the same height
 
 
 @dataclass
@@ -174,173 +179,12 @@ class ResistanceTrack:
                 "notes": list(self.notes)}
 
 
-@dataclass
-class _Equations:
-    """Linear equations ``g0 R0 + g1 c = y`` (+- sigma) of one recording, and what evaluates the track."""
 
-    rec: Recording
-    cond: Conditioned
-    y: np.ndarray
-    g: np.ndarray          # (m, 2)
-    sigma: np.ndarray
-    kinds: list[str]       # per equation: "plateau", "closure", "end"
-    energy_J: np.ndarray
-    B: np.ndarray          # (n, 2): B0, B1 per sample
-    A: np.ndarray          # (n,)
-    peak: int
-    R_prior: float | None
-    R_prior_sigma: float
-    R_ref: float           # c = kappa R_ref
-
-
-def _cumtrapz(y: np.ndarray, t: np.ndarray) -> np.ndarray:
-    out = np.zeros_like(y, dtype=float)
-    out[1:] = np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t))
-    return out
-
-
-def _equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float | None,
-               R_prior_sigma: float) -> _Equations:
-    """All data equations of a recording, with the Joule energy from the current track ``R_t``."""
-    t, uc, ic = cond.t, cond.uc, cond.ic
-    E = _cumtrapz(R_t * ic * ic, t)
-    A = _cumtrapz(uc, t)
-    B = np.column_stack([_cumtrapz(ic, t), _cumtrapz(E * ic, t)])
-    R_nom = float(np.median(R_t))
-    sig_u = math.hypot(noise_std(rec.voltage_V), R_nom * cond.sigma_i)  # per sample [V]
-    ys, gs, ss, kinds = [], [], [], []
-
-    def add(w: np.ndarray, idx: np.ndarray, sigma: float, kind: str):
-        """Equation sum(w * Psi[idx]) = 0."""
-        ys.append(float(w @ A[idx]))
-        gs.append(w @ B[idx])
-        ss.append(sigma)
-        kinds.append(kind)
-
-    # (a) plateaus: Psi at the end of each settled run equals Psi at its start
-    mask = cond.plateau_mask()
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
-        cuts = np.linspace(a, b - 1, min(_PLATEAU_PARTS, (b - a) // 8) + 1).round().astype(int)
-        for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):  # parts: R changes along a long hold
-            add(np.array([1.0, -1.0]), np.array([hi, lo]), sig_u * cond.dt * math.sqrt(hi - lo), "plateau")
-    # (b) closure of consecutive cycles with the same peak
-    i_s = cond.i_s - cond.current_offset_A
-    branches = split_branches(ic, i_s, np.zeros_like(ic), cond.thr, cond.k_smooth)
-    asc, desc = branches[::2], branches[1::2]
-    for k in range(len(desc) - 1):
-        p0, p1 = desc[k].peak_A, desc[k + 1].peak_A
-        if abs(p0 - p1) > max(_PEAK_TOL * max(p0, p1), 4.0 * cond.sigma_i):
-            continue
-        grid = np.linspace(0.1, 0.9, 17) * min(p0, p1)
-        pairs = [(desc[k], desc[k + 1])] + ([(asc[k], asc[k + 1])] if k >= 1 else [])
-        for b0, b1 in pairs:
-            if min(b0.stop - b0.start, b1.stop - b1.start) < _MIN_BRANCH:
-                continue
-            rows = []
-            for arr in (A, B[:, 0], B[:, 1]):
-                d = branch_on_grid(ic[b0.start:b0.stop], arr[b0.start:b0.stop], grid) - \
-                    branch_on_grid(ic[b1.start:b1.stop], arr[b1.start:b1.stop], grid)
-                rows.append(d)
-            ok = np.all(np.isfinite(np.vstack(rows)), axis=0)
-            if ok.sum() < 5:
-                continue
-            n_between = 0.5 * ((b1.start + b1.stop) - (b0.start + b0.stop))
-            # noise: the voltage noise integrated between the branches, and the current noise seen
-            # through the branch slope dPsi/di, averaged over each branch's samples
-            br = A[b0.start:b0.stop] - R_nom * B[b0.start:b0.stop, 0]
-            slope = float(np.ptp(br)) / max(float(np.ptp(ic[b0.start:b0.stop])), 1e-12)
-            n_br = max(1.0, 0.5 * ((b0.stop - b0.start) + (b1.stop - b1.start)))
-            ys.append(float(np.mean(rows[0][ok])))
-            gs.append(np.array([np.mean(rows[1][ok]), np.mean(rows[2][ok])]))
-            ss.append(math.sqrt((sig_u * cond.dt) ** 2 * max(n_between, 1.0)
-                                + 2.0 * (cond.sigma_i * slope) ** 2 / n_br + (slope * (p0 - p1)) ** 2))
-            kinds.append("closure")
-    # (c) end rest of a single-cycle recording: Psi_end - Psi_0 = remanence, small
-    peak = int(np.argmax(i_s))
-    if len(desc) == 1 and cond.head is not None and cond.tail is not None and R_prior is not None:
-        n = t.size
-        psi_hdr = A - B[:, 0] * R_prior
-        lo, hi = max(0, peak - cond.k_smooth), min(n, peak + cond.k_smooth + 1)
-        width = np.nanmax(np.abs(branch_on_grid(ic[desc[0].start:desc[0].stop], psi_hdr[desc[0].start:desc[0].stop],
-                                                np.linspace(0.05, 0.95, 19) * desc[0].peak_A)
-                                 - branch_on_grid(ic[asc[0].start:asc[0].stop], psi_hdr[asc[0].start:asc[0].stop],
-                                                  np.linspace(0.05, 0.95, 19) * asc[0].peak_A)))
-        sigma_end = max(float(width) if math.isfinite(width) else 0.0, 0.01 * abs(float(np.mean(psi_hdr[lo:hi]))))
-        add(np.array([1.0, -1.0]), np.array([n - 1, 0]), sigma_end, "end")
-    return _Equations(rec=rec, cond=cond, y=np.array(ys), g=np.array(gs).reshape(-1, 2), sigma=np.array(ss),
-                      kinds=kinds, energy_J=E, B=B, A=A, peak=peak, R_prior=R_prior, R_prior_sigma=R_prior_sigma,
-                      R_ref=R_nom)
-
-
-def _prepare(rec: Recording, R_ohm: float | None, header_sigma_rel: float) -> tuple[Conditioned, float | None, float]:
-    cond = condition(rec)
-    R_prior = R_ohm if R_ohm is not None else rec.coil_resistance_ohm
-    if R_prior is not None and not (math.isfinite(R_prior) and R_prior > 0):
-        raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_prior!r}"])
-    return cond, R_prior, (header_sigma_rel * R_prior if R_prior is not None else math.inf)
-
-
-def _start_R(rec: Recording, cond: Conditioned, R_prior: float | None) -> float:
-    """The R the first Joule energy is computed with: the prior, else a plateau or closure mean."""
-    if R_prior is not None:
-        return R_prior
-    mask = cond.plateau_mask()
-    sel = mask if mask.any() else slice(None)
-    R = float(np.sum(cond.uc[sel] * cond.ic[sel]) / np.sum(cond.ic[sel] ** 2)) if mask.any() else \
-        float(np.trapezoid(cond.uc, cond.t) / np.trapezoid(cond.ic, cond.t))
-    if not (math.isfinite(R) and R > 0):
-        raise RecordingError(rec.label(), ["no coil resistance: no header coil_resistance_ohm, and neither plateaus "
-                                           "nor a closed excitation to estimate it from"])
-    return R
-
-
-def _solve(blocks: list[tuple[np.ndarray, np.ndarray]], n_par: int) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted least squares of stacked (whitened design, whitened rhs) blocks: estimate and (JtJ)^-1."""
-    J = np.vstack([b[0] for b in blocks]).reshape(-1, n_par)
-    r = np.concatenate([b[1] for b in blocks])
-    JtJ = J.T @ J
-    cov = np.linalg.pinv(JtJ)
-    return cov @ (J.T @ r), cov
-
-
-def _data_block(eq: _Equations, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    sig = eq.sigma * scale
-    return eq.g / sig[:, None], eq.y / sig
-
-
-def _fit_one(eq: _Equations, kappa: float, kappa_sigma: float) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """(R0, c), unscaled covariance, chi^2 and dof of the data equations; kappa prior as ``c = kappa R_ref``."""
-    blocks = [_data_block(eq)]
-    if eq.R_prior is not None:
-        blocks.append((np.array([[1.0, 0.0]]) / eq.R_prior_sigma, np.array([eq.R_prior / eq.R_prior_sigma])))
-    ks = kappa_sigma * eq.R_ref
-    blocks.append((np.array([[0.0, 1.0]]) / ks, np.array([kappa * eq.R_ref / ks])))
-    theta, cov = _solve(blocks, 2)
-    res = (eq.g @ theta - eq.y) / eq.sigma
-    dof = eq.y.size - (np.linalg.matrix_rank(eq.g) if eq.y.size else 0)
-    return theta, cov, float(res @ res), int(dof)
-
-
-def _scale(chi2: float, dof: int) -> float:
-    """Noise scale ``sqrt(chi^2 / dof)`` (NaN without dof)."""
-    return math.sqrt(chi2 / dof) if dof > 0 else math.nan
-
-
-def _model_error(cov: np.ndarray, c: float, duration_s: float) -> np.ndarray:
-    """``cov`` plus the adiabatic model's error: ``c`` uncertain by ``duration / (2 TAU_MODEL_S)`` (Newton
-    cooling, neglected, bends R(t) by about that fraction of the heating), moving R0 along the direction the
-    data leave free (the regression of R0 on c), so that what the data pin stays pinned."""
-    m2 = (abs(c) * duration_s / (2.0 * TAU_MODEL_S)) ** 2
-    v = np.array([cov[0, 1] / cov[1, 1] if cov[1, 1] > 0 else 0.0, 1.0])
-    return cov + m2 * np.outer(v, v)
-
-
-def _track(eq: _Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float, kappa_source: str,
+def _track(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float, kappa_source: str,
            extra: list[str]) -> ResistanceTrack:
     """The track of one recording from its (R0, c) and their (scaled) covariance."""
     R0, c = float(theta[0]), float(theta[1])
-    cov = _model_error(cov, c, float(eq.cond.t[-1] - eq.cond.t[0]))
+    cov = model_error(cov, c, float(eq.cond.t[-1] - eq.cond.t[0]))
     E = eq.energy_J
     R_t = R0 + c * E
     gE = np.array([1.0, E[-1]])
@@ -397,11 +241,11 @@ def _track(eq: _Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: floa
 
 def _own_fit(rec: Recording, R_ohm: float | None, kappa: float, kappa_sigma: float, header_sigma_rel: float):
     """Equations and fit of one recording alone, the Joule energy iterated once with the fitted track."""
-    cond, R_prior, R_sigma = _prepare(rec, R_ohm, header_sigma_rel)
-    R_t = np.full(cond.t.size, _start_R(rec, cond, R_prior))
+    cond, R_prior, R_sigma = prepare(rec, R_ohm, header_sigma_rel)
+    R_t = np.full(cond.t.size, start_R(rec, cond, R_prior))
     for _ in range(2):
-        eq = _equations(rec, cond, R_t, R_prior, R_sigma)
-        theta, cov, chi2, dof = _fit_one(eq, kappa, kappa_sigma)
+        eq = equations(rec, cond, R_t, R_prior, R_sigma)
+        theta, cov, chi2, dof = fit_one(eq, kappa, kappa_sigma)
         R_t = theta[0] + theta[1] * eq.energy_J
     return eq, theta, cov, chi2, dof
 
@@ -437,7 +281,7 @@ def resistance_track(rec: Recording, R_ohm: float | None = None, *, kappa_per_J:
     ks = float(kappa_sigma_per_J) if kappa_sigma_per_J is not None else (0.0 if known else KAPPA_PRIOR_PER_J)
     ks = max(ks, 1e-12)
     eq, theta, cov, chi2, dof = _own_fit(rec, R_ohm, kappa, ks, header_sigma_rel)
-    ns = _scale(chi2, dof)
+    ns = scale_of(chi2, dof)
     scale2 = max(1.0, ns * ns) if math.isfinite(ns) else 1.0
     return _track(eq, theta, cov * scale2, ns, "given" if known else "recording",
                   ["kappa given"] if known else ["kappa prior (weak)"])
@@ -502,49 +346,12 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
     set the weights of the others. The joint fit is done twice, the Joule energy recomputed with
     the tracks of the first.
     """
-    fits, skipped = [], {}
-    for rec in recordings:
-        if rec.voltage_V is None:
-            skipped[rec.label()] = "no voltage column"
-            continue
-        if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
-            skipped[rec.label()] = "the armature moves: Psi changes at constant current"
-            continue
-        try:
-            eq, theta, cov, chi2, dof = _own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
-        except RecordingError as exc:
-            skipped[rec.label()] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
-            continue
-        ns = _scale(chi2, dof)
-        fits.append([eq, max(1.0, ns) if math.isfinite(ns) else 1.0, theta])
+    fits, skipped = _own_fits(recordings, header_sigma_rel)
     if not fits:
         raise RecordingError("campaign_resistance", ["no recording with voltage at a fixed stroke"]
                              + [f"{k}: {v}" for k, v in skipped.items()])
     m = len(fits)
-    for _ in range(2):
-        rows, rhs = [], []
-        for j, (eq, sc, _theta) in enumerate(fits):
-            Jd, rd = _data_block(eq, sc)
-            block = np.zeros((Jd.shape[0], m + 1))
-            block[:, j] = Jd[:, 0]
-            block[:, m] = Jd[:, 1] * eq.R_ref
-            rows.append(block)
-            rhs.append(rd)
-            if eq.R_prior is not None:
-                prior = np.zeros((1, m + 1))
-                prior[0, j] = 1.0 / eq.R_prior_sigma
-                rows.append(prior)
-                rhs.append(np.array([eq.R_prior / eq.R_prior_sigma]))
-        prior = np.zeros((1, m + 1))
-        prior[0, m] = 1.0 / KAPPA_PRIOR_PER_J
-        rows.append(prior)
-        rhs.append(np.zeros(1))
-        theta, cov = _solve(list(zip(rows, rhs, strict=True)), m + 1)
-        for j, f in enumerate(fits):
-            eq = f[0]
-            R_t = theta[j] + theta[m] * eq.R_ref * eq.energy_J
-            f[0] = _equations(eq.rec, eq.cond, R_t, eq.R_prior, eq.R_prior_sigma)
-            f[2] = theta
+    theta, cov = _joint_fit(fits)
     chi2, n_eq = 0.0, 0
     for j, (eq, sc, _t) in enumerate(fits):
         r = (eq.g @ np.array([theta[j], theta[m] * eq.R_ref]) - eq.y) / (eq.sigma * sc)
@@ -566,6 +373,58 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
     return CampaignResistance(kappa_per_J=float(theta[m]), kappa_sigma_per_J=float(kappa_sigma),
                               tracks=tracks, skipped=skipped, not_pinned=not_pinned,
                               problems=closure_problems(list(tracks.values())))
+
+
+def _own_fits(recordings: list[Recording], header_sigma_rel: float) -> tuple[list, dict]:
+    """Each recording with voltage at a fixed stroke fitted alone: ``[equations, noise scale (>= 1), theta]``
+    per recording, and the recordings skipped with why."""
+    fits, skipped = [], {}
+    for rec in recordings:
+        if rec.voltage_V is None:
+            skipped[rec.label()] = "no voltage column"
+            continue
+        if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
+            skipped[rec.label()] = "the armature moves: Psi changes at constant current"
+            continue
+        try:
+            eq, theta, cov, chi2, dof = _own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
+        except RecordingError as exc:
+            skipped[rec.label()] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
+            continue
+        ns = scale_of(chi2, dof)
+        fits.append([eq, max(1.0, ns) if math.isfinite(ns) else 1.0, theta])
+    return fits, skipped
+
+
+def _joint_fit(fits: list) -> tuple[np.ndarray, np.ndarray]:
+    """The joint least squares of :func:`campaign_resistance` (R0 per recording, one kappa), done twice with
+    the Joule energy recomputed from the first's tracks (``fits`` updated in place): estimate and (JtJ)^-1."""
+    m = len(fits)
+    for _ in range(2):
+        rows, rhs = [], []
+        for j, (eq, sc, _theta) in enumerate(fits):
+            Jd, rd = data_block(eq, sc)
+            block = np.zeros((Jd.shape[0], m + 1))
+            block[:, j] = Jd[:, 0]
+            block[:, m] = Jd[:, 1] * eq.R_ref
+            rows.append(block)
+            rhs.append(rd)
+            if eq.R_prior is not None:
+                prior = np.zeros((1, m + 1))
+                prior[0, j] = 1.0 / eq.R_prior_sigma
+                rows.append(prior)
+                rhs.append(np.array([eq.R_prior / eq.R_prior_sigma]))
+        prior = np.zeros((1, m + 1))
+        prior[0, m] = 1.0 / KAPPA_PRIOR_PER_J
+        rows.append(prior)
+        rhs.append(np.zeros(1))
+        theta, cov = solve_wls(list(zip(rows, rhs, strict=True)), m + 1)
+        for j, f in enumerate(fits):
+            eq = f[0]
+            R_t = theta[j] + theta[m] * eq.R_ref * eq.energy_J
+            f[0] = equations(eq.rec, eq.cond, R_t, eq.R_prior, eq.R_prior_sigma)
+            f[2] = theta
+    return theta, cov
 
 
 def closure_problems(tracks: list[ResistanceTrack]) -> list[str]:

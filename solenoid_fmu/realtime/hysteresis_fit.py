@@ -172,6 +172,36 @@ def fit_play_to_series(b_series, h_series, n_plays: int = 16, n_shape: int = 9,
     factor for fixed weights, so the fit alternates non-negative least squares between the two
     (scipy, imported here only).
     """
+    bs, hs, ws = _checked_series(b_series, h_series, sample_weights)
+    b_all = np.concatenate(bs)
+    y = np.concatenate(hs)
+    row_w = np.concatenate(ws)
+    b_min, b_max = float(b_all.min()), float(b_all.max())
+    if not b_max > b_min:
+        raise HysteresisError("the input b never changes: nothing to fit")
+    b0 = as_scalar("b0", b0)
+    r = _thresholds(thresholds, n_plays, b_min, b_max)
+    S = np.vstack([b[:, None] - play_matrix(r, b, np.full(r.size, b0)) for b in bs])
+    n_shape = int(n_shape)
+    if n_shape == 1 or n_shape < 0:
+        raise HysteresisError(f"n_shape must be 0 (no shape factor) or >= 2, got {n_shape}")
+    nodes = np.linspace(b_min, b_max, n_shape) if n_shape else None
+    Phi = hat_basis(b_all, nodes) if n_shape else None
+    n_correction = int(n_correction)
+    if n_correction == 1 or n_correction < 0:
+        raise HysteresisError(f"n_correction must be 0 or >= 2, got {n_correction}")
+    c_nodes = np.linspace(b_min, b_max, n_correction) if n_correction else None
+    C = hat_basis(b_all, c_nodes) if n_correction else None
+    w, g, c, _ = fit_weights_and_shape(S, y, Phi, row_w, C=C, smooth=float(smooth))
+    play = PlayHysteresis(r, w, shape=None if g is None else (nodes, g))
+    correction = None if c is None else (c_nodes, c)
+    fit = PlaySeriesFit(play, correction, 0.0)
+    resid = np.concatenate([fit.predict(b, b0) - h for b, h in zip(bs, hs, strict=True)])
+    return PlaySeriesFit(play, correction, float(np.sqrt(np.mean(resid**2))))
+
+
+def _checked_series(b_series, h_series, sample_weights):
+    """The series of :func:`fit_play_to_series` as 1-D float arrays, checked: (b, h, weights) per series."""
     try:
         bs = [as_1d_finite(f"b_series[{j}]", b, min_len=2) for j, b in enumerate(b_series)]
         hs = [as_1d_finite(f"h_series[{j}]", h, min_len=2) for j, h in enumerate(h_series)]
@@ -190,13 +220,12 @@ def fit_play_to_series(b_series, h_series, n_plays: int = 16, n_shape: int = 9,
         if len(ws) != len(bs) or any(w.shape != b.shape or np.any(w < 0)
                                      for w, b in zip(ws, bs, strict=True)):
             raise HysteresisError("sample_weights must be non-negative and shaped like b_series")
-    b_all = np.concatenate(bs)
-    y = np.concatenate(hs)
-    row_w = np.concatenate(ws)
-    b_min, b_max = float(b_all.min()), float(b_all.max())
-    if not b_max > b_min:
-        raise HysteresisError("the input b never changes: nothing to fit")
-    b0 = as_scalar("b0", b0)
+    return bs, hs, ws
+
+
+def _thresholds(thresholds, n_plays: int, b_min: float, b_max: float) -> np.ndarray:
+    """The play half-widths of :func:`fit_play_to_series`: ``thresholds`` checked, or ``n_plays`` spread
+    uniformly over ``(0, (b_max - b_min) / 2]``."""
     if thresholds is None:
         n_plays = int(n_plays)
         if n_plays < 1:
@@ -206,20 +235,4 @@ def fit_play_to_series(b_series, h_series, n_plays: int = 16, n_shape: int = 9,
         r = as_1d_finite("thresholds", thresholds)
         if np.any(r <= 0.0):
             raise HysteresisError("thresholds must all be > 0")
-    S = np.vstack([b[:, None] - play_matrix(r, b, np.full(r.size, b0)) for b in bs])
-    n_shape = int(n_shape)
-    if n_shape == 1 or n_shape < 0:
-        raise HysteresisError(f"n_shape must be 0 (no shape factor) or >= 2, got {n_shape}")
-    nodes = np.linspace(b_min, b_max, n_shape) if n_shape else None
-    Phi = hat_basis(b_all, nodes) if n_shape else None
-    n_correction = int(n_correction)
-    if n_correction == 1 or n_correction < 0:
-        raise HysteresisError(f"n_correction must be 0 or >= 2, got {n_correction}")
-    c_nodes = np.linspace(b_min, b_max, n_correction) if n_correction else None
-    C = hat_basis(b_all, c_nodes) if n_correction else None
-    w, g, c, _ = fit_weights_and_shape(S, y, Phi, row_w, C=C, smooth=float(smooth))
-    play = PlayHysteresis(r, w, shape=None if g is None else (nodes, g))
-    correction = None if c is None else (c_nodes, c)
-    fit = PlaySeriesFit(play, correction, 0.0)
-    resid = np.concatenate([fit.predict(b, b0) - h for b, h in zip(bs, hs, strict=True)])
-    return PlaySeriesFit(play, correction, float(np.sqrt(np.mean(resid**2))))
+    return r

@@ -264,6 +264,33 @@ def fit_play_to_loop(H_asc, B_asc, H_desc, B_desc, n_plays: int = 24, n_shape: i
     """
     Ha, Ba = _check_branch("ascending", H_asc, B_asc)
     Hd, Bd = _check_branch("descending", H_desc, B_desc)
+    n_plays, n_shape, b_lo, b_hi = _loop_tips(Ba, Bd, n_plays, n_shape)
+    span = b_hi - b_lo
+    # rows of the fit and nodes of H_an: every measured B inside the loop, a uniform grid and
+    # the nodes of the shape factor (so g is linear on every interval of the grid)
+    nodes = np.linspace(b_lo, b_hi, n_shape) if n_shape else np.empty(0)
+    b_grid, half_width, mean_h = _loop_grid(Ha, Ba, Hd, Bd, b_lo, b_hi, nodes, n_grid)
+    r = span / 4.0 * np.arange(1, n_plays + 1) / n_plays
+    s_desc, s_asc = _leg_stops(r, b_hi, b_lo, b_grid)
+    G = 0.5 * (s_asc - s_desc)
+    M = 0.5 * (s_asc + s_desc)
+
+    row_w = _row_weights(Ha, Ba, Hd, Bd, b_grid)
+    Phi = hat_basis(b_grid, nodes) if n_shape else None
+    w, g_nodes, _, _ = fit_weights_and_shape(G, half_width, Phi, row_w, smooth=smooth)
+    if g_nodes is not None:
+        g_nodes = _monotone_shape(g_nodes, r, w, G, M, Phi, half_width, mean_h, b_grid, row_w,
+                                  Ha, Ba, Hd, Bd)
+    shape = None if g_nodes is None else (nodes, g_nodes)
+    play = PlayHysteresis(r, w, shape=shape)
+
+    h_an = mean_h - play.g(b_grid) * (M @ w)
+    return PlayLoopFit((b_grid, _strictly_increasing(h_an)), play)
+
+
+def _loop_tips(Ba: np.ndarray, Bd: np.ndarray, n_plays, n_shape):
+    """The checked sizes of :func:`fit_play_to_loop` and the loop's tips ``b_lo``, ``b_hi``: where the two
+    branches meet at their extreme H (the loop must enclose b = 0 and both branches reach both tips)."""
     n_plays = int(n_plays)
     n_shape = int(n_shape)
     if n_plays < 1:
@@ -284,10 +311,12 @@ def fit_play_to_loop(H_asc, B_asc, H_desc, B_desc, n_plays: int = 24, n_shape: i
                 f"{name} branch covers B = {float(B[0])!r}..{float(B[-1])!r}, not the loop "
                 f"{b_lo!r}..{b_hi!r}: the two branches must end at the same tips"
             )
+    return n_plays, n_shape, b_lo, b_hi
 
-    # rows of the fit and nodes of H_an: every measured B inside the loop, a uniform grid and
-    # the nodes of the shape factor (so g is linear on every interval of the grid)
-    nodes = np.linspace(b_lo, b_hi, n_shape) if n_shape else np.empty(0)
+
+def _loop_grid(Ha, Ba, Hd, Bd, b_lo: float, b_hi: float, nodes: np.ndarray, n_grid):
+    """The rows of :func:`fit_play_to_loop` (every measured B inside the loop, a uniform grid and the shape
+    nodes), and there the measured half-width and mean of the branches in H."""
     inner = np.concatenate([Ba, Bd, np.linspace(b_lo, b_hi, int(n_grid)), nodes])
     b_grid = np.unique(np.clip(inner, b_lo, b_hi))
     Ha_g = np.interp(b_grid, Ba, Ha)
@@ -296,35 +325,28 @@ def fit_play_to_loop(H_asc, B_asc, H_desc, B_desc, n_plays: int = 24, n_shape: i
     if np.max(half_width) <= 0.0:
         raise HysteresisError("the ascending branch never lies at larger H than the descending one")
     mean_h = 0.5 * (Ha_g + Hd_g)
+    return b_grid, half_width, mean_h
 
-    r = span / 4.0 * np.arange(1, n_plays + 1) / n_plays
-    s_desc, s_asc = _leg_stops(r, b_hi, b_lo, b_grid)
-    G = 0.5 * (s_asc - s_desc)
-    M = 0.5 * (s_asc + s_desc)
 
-    # row weights: dB/dH of each branch at b (B error per H error), both branches counted
+def _row_weights(Ha, Ba, Hd, Bd, b_grid: np.ndarray) -> np.ndarray:
+    """Row weights of :func:`fit_play_to_loop`: dB/dH of each branch at b (B error per H error), both
+    branches counted."""
     def slope(Hb, Bb):
         return np.interp(b_grid, Bb, np.gradient(Bb, Hb))
 
     row_w = np.hypot(slope(Ha, Ba), slope(Hd, Bd))
     row_w = np.maximum(row_w, 1e-3 * row_w.max())
-    Phi = hat_basis(b_grid, nodes) if n_shape else None
-    w, g_nodes, _, _ = fit_weights_and_shape(G, half_width, Phi, row_w, smooth=smooth)
-    if g_nodes is not None:
-        g_nodes = _monotone_shape(g_nodes, r, w, G, M, Phi, half_width, mean_h, b_grid, row_w,
-                                  Ha, Ba, Hd, Bd)
-    shape = None if g_nodes is None else (nodes, g_nodes)
-    play = PlayHysteresis(r, w, shape=shape)
+    return row_w
 
-    h_an = mean_h - play.g(b_grid) * (M @ w)
-    # a strictly increasing table: the mean of two increasing branches increases; the stop
-    # term can flatten it only near the tips, where the measured branches are steep in H
+
+def _strictly_increasing(h_an: np.ndarray) -> np.ndarray:
+    """``h_an`` made strictly increasing in place: the mean of two increasing branches increases; the stop
+    term can flatten it only near the tips, where the measured branches are steep in H."""
     dh_min = 1e-9 * max(float(np.ptp(h_an)), 1e-300)
     for k in range(1, h_an.size):
         if h_an[k] <= h_an[k - 1]:
             h_an[k] = h_an[k - 1] + dh_min
-    return PlayLoopFit((b_grid, h_an), play)
-
+    return h_an
 
 
 def _branch_b_of_h(H_model: np.ndarray, B_model: np.ndarray, H_at: np.ndarray) -> np.ndarray:
