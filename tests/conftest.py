@@ -63,3 +63,13 @@ def shared_campaigns(tmp_path_factory):
     shared = tmp_path_factory.getbasetemp().parent / "steel-campaigns"
     shared.mkdir(exist_ok=True)
     return shared
+
+
+def pytest_collection_modifyitems(config, items):
+    """Test modules with a slow-marked test first, each module's tests kept together (module fixtures, such as
+    the pipeline's demo run, are set up once), the original order otherwise: the two xdist workers then start
+    on the minute-long tests and the short ones fill the gaps at the end, instead of one worker finishing a
+    three-minute fixture alone."""
+    slow_modules = {item.module.__name__ for item in items if item.get_closest_marker("slow") is not None}
+    order = {id(item): k for k, item in enumerate(items)}
+    items.sort(key=lambda item: (item.module.__name__ not in slow_modules, order[id(item)]))
