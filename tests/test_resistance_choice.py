@@ -71,3 +71,22 @@ def test_the_track_says_when_its_own_data_overrule_the_header(header_off, tmp_pa
     out = json.loads(capsys.readouterr().out)
     assert out["header_resistance_overruled"] is (header_off > 0)
     assert not out["header_resistance_disagrees"]
+
+
+def test_a_header_overruled_in_one_recording_leaves_the_others_on_their_headers(tmp_path):
+    """No heating, one recording's header 0.1 % off: its own track replaces its header, the other recordings
+    keep theirs (their flux carries no track uncertainty that is not theirs); heating would need tracks for all."""
+    from solenoid_fmu.measure import read_recording, write_recording
+
+    off, good = (read_recording(write_recording(tmp_path / f"{name}.csv", _triangles(R_TRUE * (1 + d), seed=k)))
+                 for k, (name, d) in enumerate([("off", 1e-3), ("good", 0.0)]))
+    camp, use_tracks, notes = resistance_choice([off, good])
+    assert use_tracks and camp.header_elsewhere
+    assert camp.track_for(off) is not None and camp.track_for(good) is None
+    assert "1 recording(s)" in notes[0] and "the others keep their header's resistance" in notes[0]
+    pts, _, details = flux_points([off, good], 6, choose_currents)
+    err = max(abs(p.value / _psi(p.i_A) - 1.0) for p in pts if p.i_A > 0.3)
+    assert err < 2e-3, err
+    # the point sigma counts the one track among the two recordings (halved by the average), no more
+    rel = max(p.sigma / abs(p.value) for p in pts if p.i_A > 0.3)
+    assert rel < 3e-3, rel

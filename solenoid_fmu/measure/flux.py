@@ -451,7 +451,7 @@ def _campaign_of(recordings: list[Recording], resistance) -> CampaignResistance 
     elif resistance is not None:
         raise RecordingError("commutation_curve", [f"resistance must be None, 'track' or a CampaignResistance, "
                                                    f"got {resistance!r}"])
-    if camp is not None:
+    if camp is not None and not camp.header_elsewhere:
         missing = [rec.label() for rec in recordings if camp.track_for(rec) is None]
         if missing:
             why = {lab: camp.skipped.get(lab, "not in the campaign fit") for lab in missing}

@@ -45,6 +45,7 @@ not close from cycle to cycle even with the best track.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -311,10 +312,19 @@ class CampaignResistance:
     skipped: dict[str, str]
     not_pinned: list[str]
     problems: list[str]
+    #: True: a recording without a track uses its header's resistance (:meth:`restricted`).
+    header_elsewhere: bool = False
 
     def track_for(self, rec: Recording) -> ResistanceTrack | None:
         """The track of ``rec`` (by label), or None."""
         return self.tracks.get(rec.label())
+
+    def restricted(self, labels) -> CampaignResistance:
+        """These tracks only (by recording label); every other recording keeps its header's resistance."""
+        keep = set(labels)
+        return dataclasses.replace(self, tracks={k: v for k, v in self.tracks.items() if k in keep},
+                                   not_pinned=[w for w in self.not_pinned if w.split(": ", 1)[0] in keep],
+                                   header_elsewhere=True)
 
     def summary(self) -> dict:
         """JSON-able: kappa, per-recording tracks, what is skipped, not pinned, inconsistent."""
