@@ -73,13 +73,17 @@ def test_the_track_says_when_its_own_data_overrule_the_header(header_off, tmp_pa
     assert not out["header_resistance_disagrees"]
 
 
-def test_a_header_overruled_in_one_recording_leaves_the_others_on_their_headers(tmp_path):
+@pytest.mark.parametrize("in_memory", [False, True])
+def test_a_header_overruled_in_one_recording_leaves_the_others_on_their_headers(tmp_path, in_memory):
     """No heating, one recording's header 0.1 % off: its own track replaces its header, the other recordings
-    keep theirs (their flux carries no track uncertainty that is not theirs); heating would need tracks for all."""
+    keep theirs (their flux carries no track uncertainty that is not theirs); heating would need tracks for all.
+    In memory (no file names, one label for both) each recording still gets its own track."""
     from solenoid_fmu.measure import read_recording, write_recording
 
-    off, good = (read_recording(write_recording(tmp_path / f"{name}.csv", _triangles(R_TRUE * (1 + d), seed=k)))
+    off, good = (_triangles(R_TRUE * (1 + d), seed=k) if in_memory else
+                 read_recording(write_recording(tmp_path / f"{name}.csv", _triangles(R_TRUE * (1 + d), seed=k)))
                  for k, (name, d) in enumerate([("off", 1e-3), ("good", 0.0)]))
+    assert (off.label() == good.label()) == in_memory
     camp, use_tracks, notes = resistance_choice([off, good])
     assert use_tracks and camp.header_elsewhere
     assert camp.track_for(off) is not None and camp.track_for(good) is None

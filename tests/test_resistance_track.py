@@ -105,7 +105,7 @@ def test_single_cycle_without_plateau_is_not_pinned_and_the_campaign_says_why(ta
     camp = campaign_resistance([single, multi])
     kappa_true = model.alpha_per_K / HOT.C_th_J_per_K
     assert abs(camp.kappa_per_J - kappa_true) < 3 * camp.kappa_sigma_per_J
-    assert camp.tracks[multi.label()].kappa_source == "campaign"
+    assert camp.track_for(multi).kappa_source == "campaign" and camp.track_for(multi) is not camp.track_for(single)
     assert any(line.startswith(single.label()) for line in camp.not_pinned)
     assert camp.summary()["not_pinned"] == camp.not_pinned
 

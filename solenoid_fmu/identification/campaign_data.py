@@ -235,7 +235,7 @@ def resistance_choice(recs) -> tuple:
             f"{tr.header_off_sigmas:.0f} sigma from the header's {tr.header_R_ohm:.6g} ohm"
             for tr in camp.tracks.values() if tr.header_overruled]
     heated = bool(why)
-    off = [tr.label for tr in camp.tracks.values() if tr.header_disagrees or tr.header_overruled]
+    off = [key for key, tr in camp.tracks.items() if tr.header_disagrees or tr.header_overruled]
     if heated and len(why) == len(off):  # no heating: only those recordings' headers are at odds with their data
         camp = camp.restricted(off)
         notes = [f"resistance: R(t) tracks used for eq. 4 in {len(off)} recording(s) because {'; '.join(why)}; "

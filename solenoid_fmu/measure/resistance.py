@@ -314,9 +314,15 @@ class CampaignResistance:
     problems: list[str]
     #: True: a recording without a track uses its header's resistance (:meth:`restricted`).
     header_elsewhere: bool = False
+    #: (recording, key in ``tracks``) of the recordings fitted: recordings in memory without a file share a
+    #: label, so their keys carry their place in the list (``"flux recording of PS45 (#2)"``).
+    members: tuple = field(default=(), repr=False, compare=False)
 
     def track_for(self, rec: Recording) -> ResistanceTrack | None:
-        """The track of ``rec`` (by label), or None."""
+        """The track of ``rec`` (the recording object given, else by label), or None."""
+        for member, key in self.members:
+            if member is rec:
+                return self.tracks.get(key)
         return self.tracks.get(rec.label())
 
     def restricted(self, labels) -> CampaignResistance:
@@ -356,7 +362,8 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
     set the weights of the others. The joint fit is done twice, the Joule energy recomputed with
     the tracks of the first.
     """
-    fits, skipped = _own_fits(recordings, header_sigma_rel)
+    keys = _unique_labels(recordings)
+    fits, skipped = _own_fits(recordings, keys, header_sigma_rel)
     if not fits:
         raise RecordingError("campaign_resistance", ["no recording with voltage at a fixed stroke"]
                              + [f"{k}: {v}" for k, v in skipped.items()])
@@ -375,31 +382,38 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
         T = np.array([[1.0, 0.0], [0.0, eq.R_ref]])
         idx = [j, m]
         cj = T @ cov[np.ix_(idx, idx)] @ T.T
-        tracks[eq.rec.label()] = _track(eq, np.array([theta[j], theta[m] * eq.R_ref]), cj,
-                                        sc, "campaign", ["campaign kappa"])
+        key = keys[next(k for k, r in enumerate(recordings) if r is eq.rec)]
+        tracks[key] = _track(eq, np.array([theta[j], theta[m] * eq.R_ref]), cj, sc, "campaign", ["campaign kappa"])
     not_pinned = [f"{lab}: {tr.why_not_pinned}" for lab, tr in tracks.items() if not tr.pinned]
     durations = [float(f[0].cond.t[-1] - f[0].cond.t[0]) for f in fits]
     kappa_sigma = math.hypot(math.sqrt(cov[m, m]), theta[m] * float(np.median(durations)) / (2.0 * TAU_MODEL_S))
     return CampaignResistance(kappa_per_J=float(theta[m]), kappa_sigma_per_J=float(kappa_sigma),
                               tracks=tracks, skipped=skipped, not_pinned=not_pinned,
-                              problems=closure_problems(list(tracks.values())))
+                              problems=closure_problems(list(tracks.values())),
+                              members=tuple(zip(recordings, keys, strict=True)))
 
 
-def _own_fits(recordings: list[Recording], header_sigma_rel: float) -> tuple[list, dict]:
+def _unique_labels(recordings: list[Recording]) -> list[str]:
+    """Each recording's ``label()``, with ``" (#k)"`` (its place in the list, from 1) where labels repeat."""
+    labels = [rec.label() for rec in recordings]
+    return [lab if labels.count(lab) == 1 else f"{lab} (#{k + 1})" for k, lab in enumerate(labels)]
+
+
+def _own_fits(recordings: list[Recording], keys: list[str], header_sigma_rel: float) -> tuple[list, dict]:
     """Each recording with voltage at a fixed stroke fitted alone: ``[equations, noise scale (>= 1), theta]``
-    per recording, and the recordings skipped with why."""
+    per recording, and the recordings skipped with why (by ``keys``)."""
     fits, skipped = [], {}
-    for rec in recordings:
+    for rec, key in zip(recordings, keys, strict=True):
         if rec.voltage_V is None:
-            skipped[rec.label()] = "no voltage column"
+            skipped[key] = "no voltage column"
             continue
         if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
-            skipped[rec.label()] = "the armature moves: Psi changes at constant current"
+            skipped[key] = "the armature moves: Psi changes at constant current"
             continue
         try:
             eq, theta, cov, chi2, dof = _own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
         except RecordingError as exc:
-            skipped[rec.label()] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
+            skipped[key] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
             continue
         ns = scale_of(chi2, dof)
         fits.append([eq, max(1.0, ns) if math.isfinite(ns) else 1.0, theta])
