@@ -229,6 +229,9 @@ def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
     res = identify_bh(i, psi, X_ID, geom, lit, mesh_size=3.0, stage2=False)
     summary = write_report(res, tmp_path / "rep", geometry=geom, other_flux=others)
     assert (tmp_path / "rep" / "fig16_flux_other_strokes.png").stat().st_size > 10_000
+    # the figures written are also in memory, as the pipeline's report embeds them
+    assert sorted(res.figures) == sorted(p.name for p in (tmp_path / "rep").glob("*.png"))
+    assert all(res.figures[p.name] == p.read_bytes() for p in (tmp_path / "rep").glob("*.png"))
     (row,) = summary["validation"]["flux_other_strokes"]
     assert row["x_mm"] == pytest.approx(2.0)
     # the relabelled data were measured at 1.5 mm: both curves must miss them by the stroke's effect
