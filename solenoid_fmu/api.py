@@ -77,9 +77,9 @@ def solve(i_A: float, x_m: float, *, geometry=None, material=None, mesh_size: fl
 def identify(recordings, *, geometry=None, start_material=None, out_csv=None, **options):
     """Identify the steel's initial magnetization curve B(H) from flux recordings (paper section 4).
 
-    ``recordings`` are recording paths of any kinds; the ``flux`` ones are used. Further options
-    (``mesh_size``, ``method``, ``n_currents``, ``report_dir``, ``progress``) as in
-    :func:`solenoid_fmu.identification.identify_from_recordings`. Returns its
+    ``recordings`` are recording paths or :class:`~solenoid_fmu.measure.Recording` objects of any kinds; the
+    ``flux`` ones are used. Further options (``mesh_size``, ``method``, ``n_currents``, ``report_dir``,
+    ``progress``) as in :func:`solenoid_fmu.identification.identify_from_recordings`. Returns its
     ``IdentificationResult`` (``curve``: the identified B(H); ``out_csv`` writes it).
     """
     return identify_from_recordings(recordings, geometry=geometry, start_material=start_material,

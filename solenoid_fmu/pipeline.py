@@ -22,8 +22,9 @@ When ``improve`` adds coil heating and the identification did not already integr
 campaign's resistance tracks (it does where they show the coil heating), the flux recordings it used
 carried the heating's eq.-4 drift (a B(H) error the diagnosis cannot always separate from the effects
 left, e.g. hysteresis explains part of a force residual a wrong B(H) leaves): steps 2-7 run once more on recordings
-whose voltage is corrected with the fitted heating model (:func:`solenoid_fmu.loop.heating_corrected`,
-written to ``heating-corrected/``); ``summary.json["first_round"]`` keeps what the first round found.
+whose voltage is corrected with the fitted heating model (:func:`solenoid_fmu.loop.heating_corrected`, passed
+in memory and written to ``heating-corrected/`` for the user); ``summary.json["first_round"]`` keeps what the first
+round found.
 
 ``summary.json`` holds ``material``, ``fmu``, ``improved_fmu`` (paths), ``effects_added`` (the
 words ``diagnose`` uses), ``effects_found`` (those and ``eddy`` where step 4 measured it,
@@ -273,12 +274,12 @@ def _read_campaign(run: _Run):
     return paths, skipped, recs, geom
 
 
-def _identify(run: _Run, geom, ident_paths, suffix: str):
-    """Step 2: B(H) from the flux recordings (``material/``, ``identify/``)."""
+def _identify(run: _Run, geom, ident_recs, suffix: str):
+    """Step 2: B(H) from the flux recordings in memory (``material/``, ``identify/``; the figures also in memory)."""
     t0 = run.step(f"identify B(H) from the flux recordings{suffix}")
     cfg = run.cfg
     max_nfev = {"max_nfev": cfg["identify_max_nfev"]} if "identify_max_nfev" in cfg else {}
-    ident = identify_from_recordings(ident_paths, geometry=geom, mesh_size=cfg["identify_mesh_size"],
+    ident = identify_from_recordings(ident_recs, geometry=geom, mesh_size=cfg["identify_mesh_size"],
                                      start_material=run.start_material, out_csv=run.out / "material" / "material.csv",
                                      report_dir=run.figures_dir("identify"), progress=run.progress is not None,
                                      n_currents=cfg["n_currents"], **max_nfev)
@@ -356,20 +357,18 @@ def _second_round_heating(res, ident) -> dict | None:
 
 def _heating_corrected_campaign(run: _Run, recs, heating: dict):
     """The recordings with the voltage of :data:`HEATING_CORRECTED_KINDS` corrected for ``heating``, in memory
-    (each corrected one also written to ``heating-corrected/``, which the identification reads)."""
+    (each corrected one also written to ``heating-corrected/`` for the user: nothing reads it back)."""
     corr_dir = run.out / "heating-corrected"
     corr_dir.mkdir(parents=True, exist_ok=True)
-    out_recs, paths = [], []
+    out_recs = []
     for r in recs:
         if r.kind not in HEATING_CORRECTED_KINDS:
             out_recs.append(r)
-            paths.append(r.path)
             continue
         corrected = heating_corrected(r, heating)
         path = write_recording(corr_dir / r.path.name, corrected)
         out_recs.append(dataclasses.replace(corrected, path=path))
-        paths.append(path)
-    return out_recs, paths
+    return out_recs
 
 
 def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", workers: int | None = None,
@@ -377,9 +376,9 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
     run = _Run(folder, out_dir, geometry=geometry, preset=preset, workers=workers, progress=progress,
                start_material=start_material)
     paths, skipped, recs, geom = _read_campaign(run)
-    ident_paths, ident_recs, first_round, suffix = paths, recs, None, ""
+    ident_recs, first_round, suffix = recs, None, ""
     for round_no in (1, 2):
-        ident = _identify(run, geom, ident_paths, suffix)
+        ident = _identify(run, geom, ident_recs, suffix)
         maps, eddy = _maps(run, geom, ident.curve, recs, ident_recs)
         fmu, native = _export(run, maps)
         res, native_improved = _improve(run, maps, recs, fmu, native)
@@ -390,7 +389,7 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         # diagnosis may not be able to separate from the other effects left): corrected, identify again
         run.say("== coil heating was " + ("added" if "heating" in res.effects_added else "fitted, B(H) error left")
                 + ": identify B(H) again from heating-corrected flux")
-        ident_recs, ident_paths = _heating_corrected_campaign(run, recs, heating)
+        ident_recs = _heating_corrected_campaign(run, recs, heating)
         first_round = {"effects_added": res.effects_added, "identification": ident.summary(),
                        "final_verdict": res.diagnoses[-1]["verdict"]}
         suffix = " (heating-corrected)"

@@ -14,6 +14,7 @@ import json
 import math
 import subprocess
 import zipfile
+from pathlib import Path
 
 import fmpy
 import mapsfixture as mf
@@ -463,3 +464,37 @@ def test_one_section_ladder_builds_and_steps_as_the_python_model(tmp_path):
     got, ref, _ = _cs_pair(md, unzipped, M.load_tables(d), "voltage", {"eddy_ladder_on": True})
     assert np.max(np.abs(got[:, 5])) > 1e-3  # the ladder carries current
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12)
+
+
+def test_null_effects_are_no_effects_in_both_fmus(tmp_path):
+    """An ``effects`` section naming only null effects is no effect for either FMU: one predicate
+    (:attr:`EffectsRecord.active`) decides the effect variables. Both FMUs expose the same interface (the native
+    one then has its model-exchange locals, at the value references its description gives: the C code counted
+    the effect variables when the file named any effect, so ``psi_state_Wb`` was not where the description said)."""
+    from test_fmu_c import MeInstance
+
+    from solenoid_fmu.fmu.interface import interface_for
+
+    d = mf.write_maps(tmp_path / "nulls", G_eddy_S=0.01)
+    meta = json.loads((d / "maps.json").read_text())
+    meta["effects"] = {"hysteresis": None, "eddy_ladder": None, "heating": None, "friction": None}
+    (d / "maps.json").write_text(json.dumps(meta))
+    tab = M.load_tables(d)
+    assert tab.effects.named and not tab.effects.active and interface_for(tab) == F.VARIABLES
+    names = {}
+    for backend in ("python", "c"):
+        fmu = F.build_fmu(d, tmp_path / f"nulls-{backend}.fmu", backend=backend)
+        names[backend] = [v.name for v in fmpy.read_model_description(str(fmu)).modelVariables]
+    me_locals = [name for name, _, _ in me_variables(tab)]
+    assert names["python"] == [v.name for v in F.VARIABLES]
+    assert names["c"] == names["python"] + me_locals
+    unzipped = fmpy.extract(str(tmp_path / "nulls-c.fmu"), str(tmp_path / "nulls_unzipped"))
+    assert "#define SOL_HAS_FX 0" in (Path(unzipped) / "sources" / "solenoid_maps.h").read_text()
+    md = fmpy.read_model_description(str(tmp_path / "nulls-c.fmu"))
+    inst = MeInstance(md, unzipped, "voltage", 12.0, 1.2e-3)
+    try:
+        dpsi = inst.eval(2e-3)[0]
+        psi_state, der_psi = inst.fmu.getReal([inst.vr["psi_state_Wb"], inst.vr["der(psi_state_Wb)"]])
+    finally:
+        inst.free()
+    assert psi_state == 2e-3 and der_psi == dpsi != 0.0

@@ -4,6 +4,7 @@ Budget: the FEM cases run at the identification's default mesh size (2.0) with f
 demo-campaign case (hysteresis + noise) goes through the command line once.
 """
 
+import dataclasses
 import glob
 import json
 
@@ -84,8 +85,14 @@ def test_bad_input_raises():
 
 
 def test_no_flux_recording_is_a_clear_error():
+    from solenoid_fmu.measure import read_recording
+
     with pytest.raises(RecordingError, match="no 'flux' recording"):
         identify_from_recordings([f"{DEMO}/recordings/10_eddy_12p5Aps.csv"], progress=False)
+    # recordings in memory are taken as they are (the pipeline's heating-corrected ones), with or without a file
+    rec = read_recording(f"{DEMO}/recordings/10_eddy_12p5Aps.csv")
+    with pytest.raises(RecordingError, match=r"among 2 file\(s\): 10_eddy_12p5Aps.csv \(eddy\), in memory \(eddy\)"):
+        identify_from_recordings([rec, dataclasses.replace(rec, path=None)], progress=False)
 
 
 def test_adjoint_jacobian_matches_finite_differences():
@@ -229,6 +236,9 @@ def test_flux_at_other_strokes_validates_in_the_report(tmp_path):
     res = identify_bh(i, psi, X_ID, geom, lit, mesh_size=3.0, stage2=False)
     summary = write_report(res, tmp_path / "rep", geometry=geom, other_flux=others)
     assert (tmp_path / "rep" / "fig16_flux_other_strokes.png").stat().st_size > 10_000
+    # the figures written are also in memory, as the pipeline's report embeds them
+    assert sorted(res.figures) == sorted(p.name for p in (tmp_path / "rep").glob("*.png"))
+    assert all(res.figures[p.name] == p.read_bytes() for p in (tmp_path / "rep").glob("*.png"))
     (row,) = summary["validation"]["flux_other_strokes"]
     assert row["x_mm"] == pytest.approx(2.0)
     # the relabelled data were measured at 1.5 mm: both curves must miss them by the stroke's effect

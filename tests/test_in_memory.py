@@ -4,8 +4,11 @@ Every file opened for reading during a run is recorded (``open``/``io.open``, wh
 and ``zipfile`` go through, and ``os.open``); the run's output folder is empty before it, so a file there
 at the end that was read is an output the run read back. (The FMU builder's private staging file, which it
 completes and checks with fmpy before renaming it to the FMU, is gone by then: it is the builder's work on
-one output, not data passed between steps.) The maps go from the sweep to the FMU builder, to the loop and
-to the improved FMU in memory: no ``maps.npz``, ``maps.json`` or FMU is read anywhere.
+one output, not data passed between steps; so is :func:`solenoid_fmu.maps.save_maps`'s check of a pair it
+replaces, whole or not, before keeping it aside until the new pair is in place: the pipeline's second round
+writes its maps over the first round's, and those reads are logged apart, :attr:`ReadLog.replaced`.) The maps go
+from the sweep to the FMU builder, to the loop and to the improved FMU in memory: no ``maps.npz``, ``maps.json``
+or FMU is read anywhere.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import builtins
 import io
 import os
+import sys
 from pathlib import Path
 
 from solenoid_fmu.maps import load_maps
@@ -23,18 +27,30 @@ READ_FLAGS = os.O_WRONLY | os.O_RDWR
 BUILDER_TMP = ("solenoid_fmu_build_", "solenoid_fmu_c_", "pythonfmu_")
 
 
+def _replacing_maps() -> bool:
+    """True when called (at any depth) from save_maps' replacement of a maps pair (its check of the old pair)."""
+    frame = sys._getframe(2)
+    while frame is not None:
+        if frame.f_code.co_name == "_commit_pair" and frame.f_globals.get("__name__") == "solenoid_fmu.maps.io":
+            return True
+        frame = frame.f_back
+    return False
+
+
 class ReadLog:
-    """The files opened for reading while installed (resolved paths, in order)."""
+    """The files opened for reading while installed (resolved paths, in order); ``replaced``: those save_maps
+    read to check the pair it replaces."""
 
     def __init__(self, monkeypatch):
         self.paths: list[Path] = []
+        self.replaced: list[Path] = []
         real_open, real_os_open = builtins.open, os.open
 
         def note(file, reading: bool):
             if reading and isinstance(file, str | bytes | os.PathLike):
                 path = Path(os.fsdecode(file)).resolve()
                 if not path.is_dir():
-                    self.paths.append(path)
+                    (self.replaced if _replacing_maps() else self.paths).append(path)
 
         def logged_open(file, mode="r", *args, **kwargs):
             fh = real_open(file, mode, *args, **kwargs)  # a file that is not there is not read
@@ -86,24 +102,36 @@ def test_improve_on_maps_in_memory_reads_nothing_it_wrote(rig_maps, rig_campaign
 
 
 def test_pipeline_reads_back_nothing_it_wrote(tmp_path, monkeypatch):
-    """The smoke preset (with figures) on one unit of the test lot (~20 s)."""
+    """The smoke preset (with figures, one evaluation per identification stage: what is checked is where the data
+    goes, not the fit) on one unit of the test lot, both rounds: the second round is forced (the smoke preset's
+    loop adds no heating), its heating-corrected recordings are written for the user and passed to the
+    identification in memory (~30 s)."""
     import lotdata
 
+    from solenoid_fmu import pipeline
     from solenoid_fmu.pipeline import PRESETS, run_pipeline
 
     unit = lotdata.plan()[0]
     folder = lotdata.draw(tmp_path / "campaigns", units=[unit])[0]
     out = tmp_path / "out"
-    monkeypatch.setitem(PRESETS, "smoke", dict(PRESETS["smoke"], figures=True))  # the report embeds figures
+    # the report embeds figures: the identification's own ones too
+    monkeypatch.setitem(PRESETS, "smoke", dict(PRESETS["smoke"], figures=True, identify_max_nfev=1))
+    heating = {"C_th_J_per_K": 5.0, "R_th_K_per_W": 20.0, "alpha_per_K": 0.00393}
+    monkeypatch.setattr(pipeline, "_second_round_heating", lambda res, ident: heating)
     log = ReadLog(monkeypatch)
     summary = run_pipeline(folder, out, preset="smoke", workers=1, progress=None,
                            start_material=lotdata.NOMINAL_STEEL_CSV)
     monkeypatch.undo()
     assert Path(summary["improved_fmu"]).is_file() and Path(summary["maps"], "maps.npz").is_file()
     assert list((out / "validate").glob("*.png")) and list((out / "improved").glob("*.png"))
-    # the validation figures are embedded from memory; the identification's own figures (identify/, written by
-    # solenoid_fmu.identification, which hands back paths) are still read for the report
-    read_back = [p for p in log.outputs_read(out) if p.parent != (out / "identify").resolve()]
-    assert read_back == [], "the pipeline read back files it wrote"
+    # the second round ran on the heating-corrected recordings (those it identified from are named so)
+    corrected = sorted((out / "heating-corrected").glob("*.csv"))
+    assert summary["first_round"] is not None and corrected
+    assert {Path(p).resolve() for p in summary["identification"]["recordings"]} <= {p.resolve() for p in corrected}
+    assert list((out / "identify").glob("*.png"))  # the identification's figures, embedded from memory
+    assert log.outputs_read(out) == [], "the pipeline read back files it wrote"
+    # save_maps checked the first round's maps it replaced (maps/ and the improved maps), and nothing else
+    assert {(p.parent.name, p.name) for p in log.replaced} == {
+        (d, f) for d in ("maps", Path(summary["improved_maps"]).name) for f in ("maps.json", "maps.npz")}
     assert log.maps_or_fmus() == [], "the pipeline read maps or an FMU from a file"
     assert any(Path(p).resolve() in log.paths for p in summary["recordings"])  # the log sees the inputs read

@@ -85,6 +85,7 @@ def report(tmp_path_factory):
 
     class Ident:
         rms_before, rms_after = 0.0234, 0.00123
+        figures = {p.name: p.read_bytes() for p in figs}  # the identification's figures in memory
 
     path = write_campaign_report(base / "report.html", "demo", summary, Ident(), {"before": before, "after": after},
                                  before)

@@ -139,7 +139,7 @@ def _effects_header(tables: MapTables, params: dict) -> str:
         **{key: (params[key],) for key in fx_reals}})
     lines = [
         "/* effect sub-models (maps.json effects; model.py effects_data, SolenoidModel._step_fx) */",
-        f"#define SOL_HAS_FX {_c_bool(tables.effects.named)}   /* the FMU has the effect variables */",
+        f"#define SOL_HAS_FX {_c_bool(tables.effects.active)}   /* the FMU has the effect variables (interface_for) */",
         f"#define SOL_FX_HYST {_c_bool('hysteresis' in fx)}",
         f"#define SOL_FX_LAD {_c_bool('eddy_ladder' in fx)}",
         f"#define SOL_FX_HEAT {_c_bool('heating' in fx)}",

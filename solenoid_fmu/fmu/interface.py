@@ -181,7 +181,7 @@ ME_VARIABLES = (
 
 def interface_for(tables: MapTables) -> tuple:
     """The FMU variables for these maps: :data:`VARIABLES`, plus :data:`EFFECT_VARIABLES` when
-    maps.json carries an ``effects`` section."""
+    maps.json's ``effects`` section has an effect that is not null (:attr:`EffectsRecord.active`)."""
     return VARIABLES + (EFFECT_VARIABLES if tables.effects.active else ())
 
 

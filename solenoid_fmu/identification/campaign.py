@@ -10,7 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import RecordingError
-from ..measure import commutation_curve, read_recording
+from ..measure import Recording, commutation_curve, read_recording
 from .campaign_data import HOLD_KINDS, flux_points, force_points, hold_points
 from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
 from .flux_model import as_curve, as_geometry
@@ -24,17 +24,17 @@ from .result import IdentificationResult
 __all__ = ["identify_from_recordings"]
 
 
-def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_size=None, out_csv=None,
+def identify_from_recordings(recordings, *, geometry=None, start_material=None, mesh_size=None, out_csv=None,
                              report_dir=None, progress=True, method: str = "gn", n_currents: int = DEFAULT_N_CURRENTS,
                              **kwargs) -> IdentificationResult:
     """Identify B(H) from test-rig recordings (the pipeline's entry point).
 
     Parameters
     ----------
-    paths : iterable of path
-        Recordings (CSV, format v1) of any kinds; the ``flux`` ones (by header kind) are used: the
-        stroke with the most of them is identified, flux at other strokes and ``force_stroke``
-        recordings validate (report). Other kinds are ignored.
+    recordings : iterable of path or Recording
+        Recordings (CSV files, format v1, or :class:`~solenoid_fmu.measure.Recording` in memory) of any kinds; the
+        ``flux`` ones (by header kind) are used: the stroke with the most of them is identified, flux at other
+        strokes and ``force_stroke`` recordings validate (report). Other kinds are ignored.
     geometry : Geometry or path, optional
         Default: packaged PS45.
     start_material : BHCurve or path, optional
@@ -44,7 +44,8 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
     out_csv : path, optional
         Write the curve there (+ ``.bh`` and ``.tab`` beside it).
     report_dir : path, optional
-        Write figures (paper figs. 10, 11, 15-17) and ``identification.json``.
+        Write figures (paper figs. 10, 11, 15-17; also kept in memory, ``figures`` of the result) and
+        ``identification.json``.
     progress : bool
         Progress bar on stderr.
     method : {"gn", "auglag"}
@@ -56,15 +57,14 @@ def identify_from_recordings(paths, *, geometry=None, start_material=None, mesh_
     Raises
     ------
     RecordingError
-        No ``flux`` recording among ``paths`` (or unreadable recordings).
+        No ``flux`` recording among ``recordings`` (or unreadable recordings).
     """
-    paths = [Path(p) for p in paths]
-    recs = [read_recording(p) for p in paths]
+    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     flux = [r for r in recs if r.kind == "flux"]
     if not flux:
-        raise RecordingError("identify", [f"no 'flux' recording among {len(paths)} file(s): "
-                                          + ", ".join(f"{p.name} ({r.kind})"
-                                                      for p, r in zip(paths, recs, strict=True))])
+        raise RecordingError("identify", [f"no 'flux' recording among {len(recs)} file(s): "
+                                          + ", ".join(f"{Path(r.path).name if r.path else 'in memory'} ({r.kind})"
+                                                      for r in recs)])
     flux, unusable = absolute_flux(flux)
     if not flux:
         raise RecordingError("identify", unusable)

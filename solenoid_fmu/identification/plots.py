@@ -1,9 +1,12 @@
 """Figures of the identification report, like the paper's figs. 10, 11 and 15-17.
 
-Each function draws one PNG from data the report computed (:mod:`solenoid_fmu.identification.report`).
+Each function draws one figure from data the report computed (:mod:`solenoid_fmu.identification.report`) and
+returns its PNG (bytes): the report writes the files and keeps the figures in memory for the pipeline's report.
 """
 
 from __future__ import annotations
+
+import io
 
 import numpy as np
 
@@ -23,7 +26,16 @@ def _pyplot():
     return plt
 
 
-def _finish_comparison(plt, fig, ax, xlabel: str, ylabel: str, title: str, path) -> None:
+def _png(plt, fig) -> bytes:
+    """The figure as PNG (110 dpi), closed."""
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _finish_comparison(plt, fig, ax, xlabel: str, ylabel: str, title: str) -> bytes:
     """Legend entries of the two FEM line styles, labels, and the PNG of a measured-vs-FEM figure."""
     ax.plot([], [], "kx--", label="FEM, start curve")
     ax.plot([], [], "ko:", label="FEM, identified")
@@ -32,12 +44,10 @@ def _finish_comparison(plt, fig, ax, xlabel: str, ylabel: str, title: str, path)
     ax.set_title(title)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return _png(plt, fig)
 
 
-def plot_flux_fit(r: IdentificationResult, summary: dict, path) -> None:
+def plot_flux_fit(r: IdentificationResult, summary: dict) -> bytes:
     """Fig. 10: measured commutation Psi(i), FEM with the start and the identified curve."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5))
@@ -60,12 +70,10 @@ def plot_flux_fit(r: IdentificationResult, summary: dict, path) -> None:
     ax.set_title(f"Flux linkage at x = {r.x_m * 1e3:g} mm (cf. paper fig. 10)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return _png(plt, fig)
 
 
-def plot_bh(r: IdentificationResult, path) -> None:
+def plot_bh(r: IdentificationResult) -> bytes:
     """Fig. 11: B(H) before and after, identified H range shaded, 1-sigma band of B."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5))
@@ -86,12 +94,10 @@ def plot_bh(r: IdentificationResult, path) -> None:
     ax.set_title("B(H) before and after identification (cf. paper fig. 11)")
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return _png(plt, fig)
 
 
-def plot_force_stroke(curves, path) -> None:
+def plot_force_stroke(curves) -> bytes:
     """Figs. 15-17, force: per ``force_stroke`` recording ``(k, fc, xs, f0, f1)``: colour index,
     measured curve (:func:`~solenoid_fmu.identification.measured.force_stroke_curve`), strokes [m]
     of the FEM points and the FEM force [N] with the start and the identified curve."""
@@ -103,10 +109,10 @@ def plot_force_stroke(curves, path) -> None:
         ax.plot(x * 1e3, fc["force_N"], "-", color=c, lw=1, label=f"measured {fc['i_A']:.2g} A")
         ax.plot(xs * 1e3, f0, "x--", color=c, lw=0.8, ms=4)
         ax.plot(xs * 1e3, f1, "o:", color=c, lw=0.8, ms=4)
-    _finish_comparison(plt, fig, ax, "x [mm]", "F [N]", "Force vs stroke (cf. paper figs. 15-17)", path)
+    return _finish_comparison(plt, fig, ax, "x [mm]", "F [N]", "Force vs stroke (cf. paper figs. 15-17)")
 
 
-def plot_flux_other_strokes(curves, path) -> None:
+def plot_flux_other_strokes(curves) -> bytes:
     """Figs. 15-17, flux: per other stroke ``(k, cc, i_sel, p0, p1)``: colour index, measured
     commutation curve, currents [A] of the FEM points and the FEM flux [Wb] with both curves."""
     plt = _pyplot()
@@ -116,5 +122,5 @@ def plot_flux_other_strokes(curves, path) -> None:
         ax.plot(cc.i_A, cc.psi_Wb * 1e3, "-", color=c, lw=1, label=f"measured x = {cc.position_m * 1e3:g} mm")
         ax.plot(i_sel, p0 * 1e3, "x--", color=c, ms=4)
         ax.plot(i_sel, p1 * 1e3, "o:", color=c, ms=4)
-    _finish_comparison(plt, fig, ax, "i [A]", "Psi [mWb]", "Flux linkage at other strokes (cf. paper figs. 15-17)",
-                       path)
+    return _finish_comparison(plt, fig, ax, "i [A]", "Psi [mWb]",
+                              "Flux linkage at other strokes (cf. paper figs. 15-17)")

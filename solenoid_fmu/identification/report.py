@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RecordingError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_bytes, atomic_write_text
 from ..measure import commutation_curve
 from .fit import choose_currents
 from .flux_model import as_geometry, fem_flux, fem_force_vs_stroke
@@ -34,7 +34,8 @@ def write_report(result: IdentificationResult, report_dir, *, geometry=None, oth
       out), FEM with both curves (if any such recording).
     - ``fig16_flux_other_strokes.png``: Psi(i) at the other strokes with flux recordings (if any).
     The JSON is :meth:`IdentificationResult.summary` plus the validation errors (relative RMS).
-    Returns the summary dict.
+    Returns the summary dict; the figures are also kept in memory, ``result.figures`` (file name -> PNG bytes:
+    the pipeline's report embeds them without reading the files back).
     """
     out = Path(report_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -43,8 +44,14 @@ def write_report(result: IdentificationResult, report_dir, *, geometry=None, oth
     summary = r.summary()
     summary.pop("measured_commutation", None)
     ms = r.mesh_size
-    plot_flux_fit(r, summary, out / "fig10_flux.png")
-    plot_bh(r, out / "fig11_bh.png")
+    r.figures = {}
+
+    def keep(name: str, png: bytes) -> None:
+        atomic_write_bytes(out / name, png)
+        r.figures[name] = png
+
+    keep("fig10_flux.png", plot_flux_fit(r, summary))
+    keep("fig11_bh.png", plot_bh(r))
     validation: dict = {}
     if force_recordings:
         rows, curves = [], []
@@ -63,7 +70,7 @@ def write_report(result: IdentificationResult, report_dir, *, geometry=None, oth
             rows.append({"file": Path(str(rec.path)).name, "i_A": fc["i_A"], "rms_rel_before": _rel_rms(f0, fm_, sc),
                          "rms_rel_after": _rel_rms(f1, fm_, sc)})
             curves.append((k, fc, xs, f0, f1))
-        plot_force_stroke(curves, out / "fig15_force_stroke.png")
+        keep("fig15_force_stroke.png", plot_force_stroke(curves))
         validation["force_stroke"] = rows
     if other_flux:
         rows, curves = [], []
@@ -76,7 +83,7 @@ def write_report(result: IdentificationResult, report_dir, *, geometry=None, oth
             rows.append({"x_mm": cc.position_m * 1e3, "rms_rel_before": _rel_rms(p0, psi_m, sc),
                          "rms_rel_after": _rel_rms(p1, psi_m, sc)})
             curves.append((k, cc, i_sel, p0, p1))
-        plot_flux_other_strokes(curves, out / "fig16_flux_other_strokes.png")
+        keep("fig16_flux_other_strokes.png", plot_flux_other_strokes(curves))
         validation["flux_other_strokes"] = rows
     summary["validation"] = validation
     atomic_write_text(out / "identification.json", json.dumps(summary, indent=2) + "\n")

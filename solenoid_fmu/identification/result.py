@@ -43,6 +43,9 @@ class IdentificationResult:
         and the start curve's shape).
     constraint_residuals : dict
         Largest violation of each physical constraint by the final parameters (0 = satisfied).
+    figures : dict of str to bytes
+        The report's figures (file name -> PNG) once :func:`~solenoid_fmu.identification.write_report` drew
+        them (empty before; not part of :meth:`summary`).
     """
 
     curve: BHCurve
@@ -74,6 +77,7 @@ class IdentificationResult:
     constraint_residuals: dict = field(default_factory=dict)
     history: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)
+    figures: dict = field(default_factory=dict, repr=False)
 
     def summary(self) -> dict:
         """JSON-able summary (the report's ``identification.json``)."""

@@ -53,13 +53,15 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
     errors before and after, validation figures.
 
     ``summary`` is the pipeline's summary dict (``summary.json``), ``ident`` the identification
-    result (``rms_before``, ``rms_after``; figures in ``identify/`` beside ``material/``), ``res``
-    the result of :func:`solenoid_fmu.loop.improve` (its ``as_dict()``) and ``before`` its validation of the
-    model before improvement; ``images`` (``{str(path): bytes}``, :attr:`solenoid_fmu.loop.ImproveResult.images`)
-    the validation figures in memory (embedded without reading their files back).
+    result (``rms_before``, ``rms_after``; ``figures``: its figures in memory, file name -> PNG, written to
+    ``identify/`` beside ``material/``), ``res`` the result of :func:`solenoid_fmu.loop.improve` (its ``as_dict()``)
+    and ``before`` its validation of the model before improvement; ``images`` (``{str(path): bytes}``,
+    :attr:`solenoid_fmu.loop.ImproveResult.images`) the validation figures in memory. No figure file is read back.
     """
     ident_dir = Path(summary["material"]).parent.parent / "identify"
-    ident_figs = sorted(ident_dir.glob("*.png"))
+    ident_pngs = {str(ident_dir / name): png for name, png in sorted(ident.figures.items())}
+    ident_figs = [Path(p) for p in ident_pngs]
+    images = {**(images or {}), **ident_pngs}
     s = summary["identification"]
     sections = [
         {"heading": "Summary",

@@ -234,13 +234,15 @@ class EffectsRecord:
 
     @property
     def named(self) -> bool:
-        """True when the file names any effect, null ones too (the native FMU then has the effect variables)."""
+        """True when the file names any effect, null ones too (a null effect is no effect: whether the FMUs have
+        the effect variables is :attr:`active`)."""
         return bool(self.keys)
 
     @property
     def active(self) -> bool:
-        """True when at least one effect has a non-empty section (the FMU interface then has the effect
-        variables, :func:`solenoid_fmu.fmu.interface.interface_for`)."""
+        """True when at least one effect has a non-empty section: the one predicate of "the maps have effects"
+        (both FMUs then have the effect variables: :func:`solenoid_fmu.fmu.interface.interface_for`, the native
+        FMU's ``SOL_HAS_FX``)."""
         return any(getattr(self, name) for name in EFFECT_NAMES)
 
 
