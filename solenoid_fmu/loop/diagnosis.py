@@ -91,10 +91,25 @@ class Diagnosis:
 def _stop(b: np.ndarray, r: float) -> np.ndarray:
     """Stop operator b - play_r(b), starting relaxed at b[0] (rate independent)."""
     out = np.empty_like(b)
-    y = b[0]
-    for k, v in enumerate(b):
-        y = min(max(y, v - r), v + r)
-        out[k] = v - y
+    if b.dtype != np.float64 or b.ndim != 1 or not r >= 0.0:
+        y = b[0]
+        for k, v in enumerate(b):
+            y = min(max(y, v - r), v + r)
+            out[k] = v - y
+        return out
+    # the same over Python floats (float64's IEEE doubles, no numpy scalar per sample); for r >= 0 the
+    # clamp min(max(y, v - r), v + r) in two comparisons, as the model's play operator writes it
+    y = b[0].item()
+    res = []
+    for v in b.tolist():
+        lo = v - r
+        hi = v + r
+        if y < lo:
+            y = lo
+        elif y > hi:
+            y = hi
+        res.append(v - y)
+    out[:] = res
     return out
 
 
@@ -167,6 +182,24 @@ def _features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.
     raise ValueError(f"unknown effect {effect!r}; use one of {EFFECTS}")
 
 
+class _Memo:
+    """One diagnosis's scales, features and cross-validated fits, each computed once: :func:`diagnose` scores
+    every effect on the same cases against the same partner, and :func:`score_effect` asks for the effect's
+    own fit twice (the same inputs, so the same numbers)."""
+
+    def __init__(self, cases: list[ResidualCase]):
+        self.scales = _scales(cases)
+        self.features: dict = {}
+        self.cv: dict = {}
+
+    def feature(self, effect: str, k: int, case: ResidualCase, signal: str) -> np.ndarray | None:
+        """:func:`features` of the ``k``-th case (the arrays are read, never written, by the callers)."""
+        key = (effect, k, signal)
+        if key not in self.features:
+            self.features[key] = features(effect, case, signal, self.scales)
+        return self.features[key]
+
+
 def _scales(cases: list[ResidualCase]) -> dict:
     psi = max(np.max(np.abs(c.psi_Wb)) for c in cases) or 1.0
     dpsi = max(np.max(np.abs(_ddt(c.psi_Wb, c.time_s))) for c in cases) or 1.0
@@ -181,10 +214,23 @@ def _scales(cases: list[ResidualCase]) -> dict:
 
 
 def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict,
-            balanced: bool = False) -> tuple[float, float, int]:
+            balanced: bool = False, memo: _Memo | None = None) -> tuple[float, float, int]:
     """Held-out SSE and SS of the normalized residual of ``signal`` fitted by the union of the
-    features of ``effects`` (two-fold cross-validation); (0, 0, 0) when nothing applies."""
-    feats = [[features(e, c, signal, scales) if signal in c.residuals else None for e in effects] for c in cases]
+    features of ``effects`` (two-fold cross-validation); (0, 0, 0) when nothing applies. ``memo``: the
+    diagnosis's (:class:`_Memo`, made with these cases and ``scales``)."""
+    if memo is not None:
+        key = (tuple(effects), signal, balanced)
+        if key not in memo.cv:
+            memo.cv[key] = _cv_sse_of(effects, cases, signal, scales, balanced,
+                                      lambda e, k, c: memo.feature(e, k, c, signal))
+        return memo.cv[key]
+    return _cv_sse_of(effects, cases, signal, scales, balanced, lambda e, k, c: features(e, c, signal, scales))
+
+
+def _cv_sse_of(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict, balanced: bool,
+               feature) -> tuple[float, float, int]:
+    """:func:`_cv_sse` with the features of ``signal`` by ``feature(effect, k, case)``."""
+    feats = [[feature(e, k, c) if signal in c.residuals else None for e in effects] for k, c in enumerate(cases)]
     # an effect that applies to some recordings only gets zero columns in the others
     widths = [next((f[j].shape[1] for f in feats if f[j] is not None), 0) for j in range(len(effects))]
     data = []
@@ -223,7 +269,7 @@ def _cv_sse(effects: tuple, cases: list[ResidualCase], signal: str, scales: dict
 
 
 def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partner: str = "material",
-                 balanced: bool = False) -> Candidate:
+                 balanced: bool = False, memo: _Memo | None = None) -> Candidate:
     """Held-out share of residual energy that ``effect`` explains beyond ``partner``.
 
     Per signal: ``(SSE(partner) - min(SSE(partner + effect), SSE(effect))) / SS``, all held out.
@@ -232,30 +278,33 @@ def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partne
     smooth function of Psi and x that a corrected B(H) would remove); ``material`` itself is
     scored by what it adds to the best other effect (see :func:`diagnose`). So neither a flexible
     signature nor the smooth baseline can claim what the other explains as well.
+
+    ``memo``: the features and fits already computed on these ``cases`` (:func:`diagnose`'s).
     """
-    scales = _scales(cases)
+    memo = _Memo(cases) if memo is None else memo
+    scales = memo.scales
     sse_total, ss_total = 0.0, 0.0
     per_signal = {}
     n_feat = 0
     for signal in signals:
-        probe = [features(effect, c, signal, scales) for c in cases if signal in c.residuals]
+        probe = [memo.feature(effect, k, c, signal) for k, c in enumerate(cases) if signal in c.residuals]
         if all(X is None for X in probe):
             continue
         union = (effect,) if partner in (None, effect) else (partner, effect)
-        sse, ss, p = _cv_sse(union, cases, signal, scales, balanced)
+        sse, ss, p = _cv_sse(union, cases, signal, scales, balanced, memo)
         if ss <= 0:
             continue
         if partner in (None, effect):
             base = ss
         else:
-            base, _, _ = _cv_sse((partner,), cases, signal, scales, balanced)
+            base, _, _ = _cv_sse((partner,), cases, signal, scales, balanced, memo)
             if base == 0.0:  # the partner does not apply to this signal
                 base = ss
             # the partner's columns can also spoil the held-out prediction (a smooth polynomial fitted
             # on some recordings extrapolates badly to others): then the effect alone is the better
             # model, and what it explains beyond the partner is measured against that
             # (on the same samples: where the effect does not apply, it leaves the residual as it is)
-            sse_alone, ss_alone, _ = _cv_sse((effect,), cases, signal, scales, balanced)
+            sse_alone, ss_alone, _ = _cv_sse((effect,), cases, signal, scales, balanced, memo)
             sse = min(sse, sse_alone + (ss - ss_alone))
         per_signal[signal] = (base - sse) / ss
         sse_total += sse - base
@@ -266,7 +315,7 @@ def score_effect(effect: str, cases: list[ResidualCase], signals=SIGNALS, partne
     if partner not in (None, effect):
         sse_a = ss_a = 0.0
         for signal in per_signal:
-            e, q, _ = _cv_sse((effect,), cases, signal, scales, balanced)
+            e, q, _ = _cv_sse((effect,), cases, signal, scales, balanced, memo)
             sse_a += e
             ss_a += q
         alone = 1.0 - sse_a / ss_a if ss_a > 0 else 0.0
@@ -311,11 +360,12 @@ def diagnose(cases: list[ResidualCase], effects=EFFECTS, threshold: float = DEFA
     """
     if not cases:
         raise ValueError("diagnose needs at least one recording")
-    others = [score_effect(e, cases, signals, balanced=balanced) for e in effects if e != "material"]
+    memo = _Memo(cases)  # each feature and fit once for all the effects scored
+    others = [score_effect(e, cases, signals, balanced=balanced, memo=memo) for e in effects if e != "material"]
     ranking = others
     if "material" in effects:
         best = max(others, key=lambda c: c.score).effect if others else None
-        ranking = others + [score_effect("material", cases, signals, partner=best, balanced=balanced)]
+        ranking = others + [score_effect("material", cases, signals, partner=best, balanced=balanced, memo=memo)]
     ranking = sorted(ranking, key=lambda c: -c.score)
     nrms = residual_nrms(cases)
     significant = any(v >= min_nrms for v in nrms.values())

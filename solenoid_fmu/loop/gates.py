@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..fmu import simulate_model
-from ..measure import flux_linkage
+from ..measure import Recording, flux_linkage
 from .diagnosis import DEFAULT_MIN_NRMS, diagnose
 from .effects import fit_eddy_ladder, fit_friction, fit_heating, fit_hysteresis, g_eddy_source
 from .metrics import full_scales, nrmse_fs
@@ -58,9 +58,22 @@ class Step:
 
 
 # -- the steps -----------------------------------------------------------------------------------
-def simulate_cases(tables, recordings, progress=None, flux_of=flux_linkage):
-    return cases_from_recordings(None, recordings, progress=progress and (lambda n: progress(f"simulating {n}")),
-                                 simulate=lambda r, R: simulate_model(tables, r, R_ohm=R), flux_of=flux_of)
+def simulate_cases(tables, recordings, progress=None, flux_of=flux_linkage, memo=None):
+    """The residual cases of ``recordings`` simulated on ``tables`` in process; each recording's also kept in
+    ``memo`` (a :class:`~solenoid_fmu.loop.residuals.CaseMemo`), if given."""
+    def cases_of(recs):
+        return cases_from_recordings(None, recs, progress=progress and (lambda n: progress(f"simulating {n}")),
+                                     simulate=lambda r, R: simulate_model(tables, r, R_ohm=R), flux_of=flux_of)
+
+    if memo is None:
+        return cases_of(recordings)
+    cases = []
+    for rec in recordings:
+        found = cases_of([rec])
+        if isinstance(rec, Recording):
+            memo.put(tables, rec, found)
+        cases += found
+    return cases
 
 
 def gate_error(cases, names) -> float:

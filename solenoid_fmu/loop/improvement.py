@@ -87,7 +87,7 @@ from .gates import (
 )
 from .heating_evidence import heating_from_resistance
 from .identifiability import not_identifiable
-from .residuals import FluxCache, recording_name
+from .residuals import CaseMemo, FluxCache, recording_name
 from .split import split_recordings
 from .tables import ImproveError, maps_from_fmu, with_maps_meta
 from .validation import validate_model
@@ -119,7 +119,7 @@ _cases, _error = simulate_cases, gate_error
 
 # -- the loop --------------------------------------------------------------------------------------
 def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS, min_gain: float = DEFAULT_MIN_GAIN,
-                   threshold: float | None = None, progress=None, flux_of=None) -> Improvement:
+                   threshold: float | None = None, progress=None, flux_of=None, memo=None) -> Improvement:
     """Run the loop on in-process simulations (see the module docstring).
 
     Parameters
@@ -136,6 +136,8 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     flux_of : FluxCache, optional
         The eq.-4 flux of the recordings (default: a new :class:`~solenoid_fmu.loop.residuals.FluxCache`,
         so that each recording's flux is computed once in the run).
+    memo : CaseMemo, optional
+        Receives the cases of ``tables`` itself (:func:`improve` validates it on them).
     """
     if not recordings:
         raise ImproveError("improve needs at least one recording")
@@ -152,7 +154,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     missing = not_identifiable(recordings, flux_of)
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
-    cases = cases0 = simulate_cases(tables, recordings, say, flux_of)
+    cases = cases0 = simulate_cases(tables, recordings, say, flux_of, memo)
     heat = None if "heating" in effects else heating_from_resistance(recordings, tables)
     if heat is not None:
         effects, tables, cases = add_measured_heating(run, heat, effects, tables, cases, steps, min_gain)
@@ -288,8 +290,9 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     except MapsError as exc:
         raise ImproveError(str(exc)) from None
     flux_of = FluxCache()
+    memo = CaseMemo()  # the loop's first simulation of the model is its validation before
     found = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain, threshold=threshold,
-                           progress=say, flux_of=flux_of)
+                           progress=say, flux_of=flux_of, memo=memo)
     improved = with_maps_meta(maps, found.tables)
     improved_tables = maps_tables(improved, where=source)
     maps_dir = None
@@ -299,7 +302,8 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
         build_fmu(improved, out_fmu)
     say("validating the model before and after")
     images: dict = {}
-    before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of, images=images)
+    before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of, images=images,
+                            memo=memo)
     after = validate_model(improved_tables, recs, label=str(out_fmu or improved.name), report_dir=report_dir,
                            flux_of=flux_of, images=images)
     result = ImproveResult(improved, improved_tables, found.steps, found.diagnoses, found.not_identifiable,

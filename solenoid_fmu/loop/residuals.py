@@ -87,6 +87,27 @@ class FluxCache:
         return hit[1]
 
 
+class CaseMemo:
+    """Residual cases of (model tables, recording) pairs already simulated, by object identity.
+
+    ``improve`` validates the model it started from on the recordings the loop simulated it on first:
+    the same tables and recording objects, so the same cases (the simulation is deterministic).
+    """
+
+    def __init__(self):
+        self._by_id: dict = {}
+
+    def get(self, tables, rec) -> list | None:
+        """The cases of ``rec`` simulated on ``tables`` (a list of 0 or 1), or None if not simulated."""
+        hit = self._by_id.get((id(tables), id(rec)))
+        if hit is None or hit[0] is not tables or hit[1] is not rec:
+            return None
+        return hit[2]
+
+    def put(self, tables, rec, cases: list) -> None:
+        self._by_id[(id(tables), id(rec))] = (tables, rec, cases)
+
+
 def recording_name(rec) -> str:
     """How reports name a recording: its file name, or its kind when it has no file."""
     return rec.path.name if rec.path is not None else rec.kind

@@ -18,6 +18,14 @@ def lowpass(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     acc = 0.0
     dt = np.diff(t, prepend=t[0])
     a = np.exp(-dt / tau)
+    if x.dtype == np.float64 and x.ndim == 1 and a.dtype == np.float64:
+        # over Python floats: the same IEEE arithmetic without a numpy scalar per sample
+        out = []
+        for ak, xk in zip(a.tolist(), x.tolist(), strict=False):
+            acc = ak * acc + (1 - ak) * xk
+            out.append(acc)
+        y[:] = out
+        return y
     for k in range(len(x)):
         acc = a[k] * acc + (1 - a[k]) * x[k]
         y[k] = acc

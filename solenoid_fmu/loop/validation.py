@@ -43,7 +43,7 @@ from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
 from .metrics import ValidationError, summarize, validate_cases
 from .plots import overlay_png, residual_png
-from .residuals import cases_from_recordings
+from .residuals import cases_from_recordings, recording_name
 
 
 def _unique_stems(names: list[str]) -> list[str]:
@@ -118,7 +118,7 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
 
 
 def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None, progress=None,
-                   flux_of=flux_linkage, images: dict | None = None) -> dict:
+                   flux_of=flux_linkage, images: dict | None = None, memo=None) -> dict:
     """:func:`validate` with the real-time model run in this process on ``tables`` instead of an FMU.
 
     The FMU runs the same model on the same maps (:func:`solenoid_fmu.fmu.simulate_model`, whose agreement
@@ -135,8 +135,16 @@ def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None
     images : dict, optional
         Receives the figures written to ``report_dir``, ``{str(path): PNG bytes}`` (a report embeds them from
         memory).
+    memo : CaseMemo, optional
+        Cases already simulated (:class:`~solenoid_fmu.loop.residuals.CaseMemo`): a recording (object) whose
+        cases on ``tables`` (object) it holds is not simulated again.
     """
     def cases_of(rec):
+        known = None if memo is None else memo.get(tables, rec)
+        if known is not None:
+            if progress:
+                progress(recording_name(rec))
+            return known
         return cases_from_recordings(None, [rec], progress=progress, flux_of=flux_of,
                                      simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
 
