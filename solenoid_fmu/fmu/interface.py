@@ -16,14 +16,14 @@ name                    causality  variability  meaning
 ``dpsi_dt_V``           output     continuous   induced voltage dPsi/dt [V]
 ``i_eddy_A``            output     continuous   eddy current G dPsi/dt [A] (eq. 2)
 ``out_of_map``          output     discrete     true while x or Psi is clamped to the map
-``R_ohm``               parameter  tunable      coil resistance at 20 degC [ohm]
+``R_ohm``               parameter  tunable      coil resistance at the start, before self-heating [ohm]
 ``G_eddy_S``            parameter  tunable      eddy-current conductance [S]
 ``drive_mode``          parameter  fixed        Integer 1..2: 1 voltage-driven, 2 current-driven
 ``Psi0_Wb``             parameter  fixed        initial flux linkage [Wb]
 ``h_sub_max_s``         parameter  fixed        largest internal sub-step [s]
 ======================  =========  ===========  ======================================================
 
-Maps with an ``effects`` section (issue 7) add :data:`EFFECT_VARIABLES` after these. The native C
+Maps with an ``effects`` section (effect sub-models) add :data:`EFFECT_VARIABLES` after these. The native C
 source gets the value references of this table as a generated enum (``solenoid_model.h``).
 """
 
@@ -94,7 +94,8 @@ VARIABLES = (
                 "eddy current i_eddy = G_eddy dPsi/dt [A] (paper eq. 2)"),
     FmuVariable("out_of_map", "Boolean", "output", "discrete", None,
                 "true while x or Psi lies outside the characteristic maps and is clamped"),
-    FmuVariable("R_ohm", "Real", "parameter", "tunable", "Ohm", "coil resistance R at 20 degC [ohm], > 0"),
+    FmuVariable("R_ohm", "Real", "parameter", "tunable", "Ohm",
+                "coil resistance at the start, before self-heating [ohm], > 0 (default: at 20 degC)"),
     FmuVariable("G_eddy_S", "Real", "parameter", "tunable", "S",
                 "eddy-current conductance G_eddy [S] (the paper's L_eddy), >= 0"),
     FmuVariable("drive_mode", "Integer", "parameter", "fixed", None,
@@ -105,7 +106,7 @@ VARIABLES = (
                 "largest internal integration sub-step [s] (ROS2, L-stable)"),
 )
 
-#: Variables an FMU gains when its maps carry effect sub-models (maps.json ``effects``; issue 7),
+#: Variables an FMU gains when its maps carry effect sub-models (maps.json ``effects``),
 #: appended after :data:`VARIABLES` (the base value references do not move).
 EFFECT_VARIABLES = (
     FmuVariable("i_hyst_A", "Real", "output", "continuous", "A",
@@ -132,7 +133,7 @@ EFFECT_VARIABLES = (
 )
 
 #: (min, max) of the Integer ``drive_mode``: an Integer, not an Enumeration, because libcosim (OSP)
-#: and Ecos drop FMI 2.0 Enumeration variables (issue 14).
+#: and Ecos drop FMI 2.0 Enumeration variables (seen with simulators' importers).
 DRIVE_MODE_RANGE = (DRIVE_VOLTAGE, DRIVE_CURRENT)
 
 #: SI unit definitions (exponents of the SI base units) used in modelDescription.xml.

@@ -35,7 +35,7 @@ __all__ = ["DOC_PYTHON_BACKEND", "PYTHON_DESCRIPTION", "SLAVE_SOURCE", "build_py
 #: The slave module (a real module of this package) whose copy goes into the FMU.
 SLAVE_SOURCE = Path(__file__).with_name("slave.py")
 
-#: The documentation page's note on the pythonfmu backend (issue 14: C/C++ hosts need libpython preloaded).
+#: The documentation page's note on the pythonfmu backend (C/C++ hosts need libpython preloaded).
 DOC_PYTHON_BACKEND = (
     "<li>The Python backend needs a Python 3 interpreter with numpy on the machine that runs the FMU. "
     "In a C/C++ host (OMSimulator, libcosim, Ecos, Simulink) libpython must be loaded globally before the "

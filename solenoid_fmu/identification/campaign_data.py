@@ -1,7 +1,6 @@
 r"""What a campaign tells about the steel: measured operating points with their uncertainty.
 
-Every recording that carries the steel's magnetization is used (issue "the identified B(H) must
-hold on real campaigns"):
+Every recording that carries the steel's magnetization is used, not one stroke:
 
 - **Flux** (``flux`` recordings starting at rest with a measured voltage offset): at each stroke, the
   commutation curve (mean of ascending and descending branch, paper sec. 4) at ``n_currents`` currents, of

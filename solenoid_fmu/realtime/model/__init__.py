@@ -88,9 +88,9 @@ State and parameters
 --------------------
 The full internal state is a flat list of floats (:meth:`SolenoidModel.get_state`,
 :meth:`SolenoidModel.set_state`, names in :data:`STATE_NAMES`), so that a rollback is exact.
-Parameters are a dict (:data:`DEFAULT_PARAMS`). Future effects (hysteresis play operators,
-thermal state, eddy-current ladder, friction) append their states to the state vector (bumping
-:data:`STATE_LAYOUT`) and add switchable parameters with defaults that keep today's behaviour.
+Parameters are a dict (:data:`DEFAULT_PARAMS`). The effect sub-models (hysteresis play operators,
+eddy-current ladder, coil heating, friction) keep their states after the base ones (``FX_*`` indices) and
+have switchable parameters whose defaults follow maps.json's ``effects`` section.
 
 Modules (each by job; the package is the FMU payload: numpy and the standard library only, relative
 imports among its own modules, copied whole into every pythonfmu FMU)

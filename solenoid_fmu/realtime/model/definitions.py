@@ -54,12 +54,15 @@ ST_OUT_I_EDDY_A = STATE_INDEX["out_i_eddy_A"]
 
 #: Parameters and their defaults; ``None`` means "take the value from maps.json".
 DEFAULT_PARAMS = {
-    "R_ohm": None,  # coil resistance at 20 degC [ohm] (maps.json coil.resistance_ohm_20C)
+    # coil resistance at the start, before self-heating [ohm]: the heating sub-model multiplies it by
+    # (1 + alpha T_rise); default the maps' value at 20 degC (coil.resistance_ohm_20C), and validation gives it
+    # the recording's measured one (the coil at the temperature the run starts from)
+    "R_ohm": None,
     "G_eddy_S": None,  # eddy-current conductance [S] (maps.json eddy.G_eddy_S, 0 if null)
     "drive_mode": "voltage",  # "voltage" / "current" (or DRIVE_VOLTAGE / DRIVE_CURRENT)
     "Psi0_Wb": 0.0,  # initial flux linkage [Wb] (ignored in current mode with G = 0)
     "h_sub_max_s": 1e-4,  # largest internal sub-step [s]
-    # switchable effect sub-models (issue 7); None = "as maps.json's effects section says"
+    # switchable effect sub-models; None = "as maps.json's effects section says"
     "hysteresis_on": None,  # magnetic hysteresis (play operator on Psi, extra current [A])
     "hyst_gain": 1.0,  # factor on the hysteresis current [-]
     "eddy_ladder_on": None,  # frequency-dependent eddy currents (R-L sections beside G_eddy)
@@ -75,7 +78,7 @@ DEFAULT_PARAMS = {
 #: Temperature coefficient of copper's resistance at 20 degC [1/K]; the one value every module uses.
 COPPER_ALPHA_PER_K = 0.00393
 
-#: Names of the effect sub-models (the ``effects`` section of maps.json; issue 7).
+#: Names of the effect sub-models (the ``effects`` section of maps.json).
 EFFECT_NAMES = ("hysteresis", "eddy_ladder", "heating", "friction")
 #: Defaults of the effect scalars when the effects section leaves them out.
 EFFECT_DEFAULTS = {"C_th_J_per_K": 300.0, "R_th_K_per_W": 1.0, "alpha_per_K": COPPER_ALPHA_PER_K, "friction_N": 0.0,

@@ -1,4 +1,4 @@
-"""The ``effects`` section of maps.json (issue 7), checked and prepared for the step.
+"""The ``effects`` section of maps.json, checked and prepared for the step.
 
 Part of the FMU payload (:mod:`solenoid_fmu.realtime.model`): numpy and the standard library only.
 """

@@ -188,7 +188,7 @@ class EddyRecord(_Section):
 
 @dataclass(frozen=True)
 class EffectsRecord:
-    """maps.json's ``effects`` section (issue 7): one entry per effect sub-model, each an object or null.
+    """maps.json's ``effects`` section: one entry per effect sub-model, each an object or null.
 
     The sections are kept as the file has them; :func:`~.effects.effects_data` checks their numbers and
     prepares them for the step.

@@ -56,8 +56,8 @@ class SolenoidModel:
     tables : MapTables
         The characteristic maps.
     params : dict, optional
-        Overrides of :data:`DEFAULT_PARAMS`: ``R_ohm`` [ohm] (> 0, at 20 degC), ``G_eddy_S`` [S]
-        (>= 0), ``drive_mode`` ("voltage"/"current" or 1/2), ``Psi0_Wb`` [Wb],
+        Overrides of :data:`DEFAULT_PARAMS`: ``R_ohm`` [ohm] (> 0, at the start before self-heating; default the
+        maps' at 20 degC), ``G_eddy_S`` [S] (>= 0), ``drive_mode`` ("voltage"/"current" or 1/2), ``Psi0_Wb`` [Wb],
         ``h_sub_max_s`` [s] (> 0). Unknown keys are refused.
 
     Attributes
@@ -391,7 +391,7 @@ class SolenoidModel:
             self._finish(s, psi, pc, i_f, x_m, xc)
         self._state = s
 
-    # -- effect sub-models (issue 7) ---------------------------------------------------------------
+    # -- effect sub-models ---------------------------------------------------------------------
     @property
     def i_hyst_A(self) -> float:
         """Hysteresis current [A] of the play operator (0 without the effect)."""
