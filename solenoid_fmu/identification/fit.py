@@ -198,8 +198,8 @@ def identify_bh(i_A, psi_Wb, x_m: float, geometry, start_curve: BHCurve, mesh_si
         Nodes of the log-H grid (parameters: m + 1).
     method : {"gn", "auglag"}
         ``gn`` (default): (1) scale the start curve's polarization and stretch it along H (two
-        parameters, :func:`scaled_curve`), then (2) bounded Gauss-Newton / trust-region reflective
-        (scipy ``least_squares``) on all parameters of :class:`SusceptibilityModel`, residuals =
+        parameters, :func:`scaled_curve`, scipy ``least_squares``), then (2) projected
+        Levenberg-Marquardt (:func:`projected_lm`) on all parameters of :class:`SusceptibilityModel`, residuals =
         flux errors relative to the peak flux plus a weak prior holding the curvature of ln chi
         near stage 1's; adjoint Jacobians in both stages. ``auglag``: the paper's method, nlopt
         AUGLAG around LN_BOBYQA minimising the mean absolute flux error (eq. 7 as meant) under the
