@@ -79,9 +79,9 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
     if progress:
         bar = tqdm(desc=f"identify B(H) ({method})", unit="FEM evaluation", file=sys.stderr)
 
-        def cb(n, rms):
+        def cb(n, rms):  # auglag: the relative flux RMS; the joint fit: the RMS of all points in sigma units
             bar.update(1)
-            bar.set_postfix_str(f"flux RMS {rms * 100:.3f} %")
+            bar.set_postfix_str(f"flux RMS {rms * 100:.3f} %" if method == "auglag" else f"RMS {rms:.2f} sigma")
     try:
         if method == "auglag":  # the paper's method: one stroke, flux only
             res, cc, others_used = _by_auglag(main, others, geom, start, mesh_size, cb, n_currents, kwargs)
