@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
@@ -39,7 +37,7 @@ class SPDSolver:
         self.u_indices = indices[self.upper].astype(np.int32)
         self._ps = None
         if backend == "MKL PARDISO":
-            self._ps = _pardiso_solver()
+            self._ps = _pardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
             self._analysed = False
 
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -70,28 +68,6 @@ class SPDSolver:
         self._ps._call_pardiso(A, b)
         self._ps.set_phase(33)
         return self._ps._call_pardiso(A, b)
-
-
-#: MKL's runtime library as the first PyPardisoSolver of this process found it (see :func:`_pardiso_solver`).
-_MKL_RT: str | None = None
-
-
-def _pardiso_solver():
-    """A PyPardisoSolver for real symmetric positive definite matrices.
-
-    pypardiso looks for MKL's runtime library on every construction (``find_library``, then a recursive glob of
-    the whole environment: ~0.3 s per solver); later ones are given the library the first one loaded, through
-    pypardiso's own variable ``PYPARDISO_MKL_RT`` (set for the construction only, unless the user set it)."""
-    global _MKL_RT
-    if _MKL_RT is None or "PYPARDISO_MKL_RT" in os.environ:
-        ps = _pardiso.PyPardisoSolver(mtype=2)
-        _MKL_RT = _MKL_RT or getattr(ps.libmkl, "_name", None)
-        return ps
-    os.environ["PYPARDISO_MKL_RT"] = _MKL_RT
-    try:
-        return _pardiso.PyPardisoSolver(mtype=2)
-    finally:
-        os.environ.pop("PYPARDISO_MKL_RT", None)
 
 
 try:  # optional accelerator, see SPDSolver
