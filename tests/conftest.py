@@ -65,11 +65,36 @@ def shared_campaigns(tmp_path_factory):
     return shared
 
 
+def _campaign_of(item):
+    """The truth-steel campaign (name, effects, seed) a test works on, or None."""
+    cs = getattr(item, "callspec", None)
+    if cs is None or "shared_campaigns" not in getattr(item, "fixturenames", ()):
+        return None
+    return cs.params.get("name"), cs.params.get("effects"), cs.params.get("seed")
+
+
 def pytest_collection_modifyitems(config, items):
     """Test modules with a slow-marked test first, each module's tests kept together (module fixtures, such as
     the pipeline's demo run, are set up once), the original order otherwise: the two xdist workers then start
     on the minute-long tests and the short ones fill the gaps at the end, instead of one worker finishing a
-    three-minute fixture alone."""
+    three-minute fixture alone.
+
+    The truth-steel campaign tests come first of all, ordered by campaign: a campaign's identification test
+    and the loop test that reads the same identification sit side by side, so one worker runs them one after
+    the other. Module by module, one worker identified while the other worker's loop test waited on the same
+    campaign's file lock (230 worker-s of waiting in one CI run)."""
     slow_modules = {item.module.__name__ for item in items if item.get_closest_marker("slow") is not None}
     order = {id(item): k for k, item in enumerate(items)}
-    items.sort(key=lambda item: (item.module.__name__ not in slow_modules, order[id(item)]))
+    campaigns: dict = {}
+    for item in items:
+        c = _campaign_of(item)
+        if c is not None:
+            campaigns.setdefault(c, len(campaigns))
+
+    def key(item):
+        c = _campaign_of(item)
+        if c is not None:
+            return (0, campaigns[c], order[id(item)])
+        return (1 if item.module.__name__ in slow_modules else 2, 0, order[id(item)])
+
+    items.sort(key=key)

@@ -261,3 +261,25 @@ def test_curves_within_bounds_pass_the_material_checks(tmp_path, fitted):
         path = write_bh_csv(tmp_path / f"c{k}.csv", H, B)
         back = load_material(path)
         assert np.max(np.abs(back.B_of_H(H[1:]) / B[1:] - 1.0)) < 0.01
+
+
+def test_point_model_jacobian_matches_finite_differences_in_the_curve():
+    """PointModel's Jacobian (flux by the adjoint, force by the one-sided x-difference of dW'/dtheta) against
+    central differences of the values themselves in both curve parameters, at four strokes (0.5 mm, where
+    the truncation error is largest) and at the stroke's end (where the x-step turns inwards)."""
+    from solenoid_fmu.identification.point_model import PointModel
+
+    geom = load_geometry()
+    lit = load_material()
+    x_end = geom.stroke.max_m
+    pts = [("psi", 0.5, 1.0e-3), ("psi", 1.5, 2.0e-3), ("force", 0.8, 1.0e-3), ("force", 1.6, 2.5e-3),
+           ("force", 1.2, x_end), ("force", 0.3, 0.5e-3)]
+    pm = PointModel(geom, pts, lambda p: scaled_curve(lit, p[0], p[1]), 3.0, lit)
+    p = np.array([0.05, 0.3])
+    J = pm.jacobian(p)
+    h = 1e-3
+    for k in range(2):
+        e = np.zeros(2)
+        e[k] = h
+        fd = (pm.values(p + e) - pm.values(p - e)) / (2 * h)
+        np.testing.assert_allclose(J[:, k], fd, rtol=5e-3, atol=1e-4 * np.abs(fd).max())
