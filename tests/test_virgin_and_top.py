@@ -20,7 +20,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from solenoid_fmu.identification.campaign_data import _corrected_curve, flux_sigma, virgin_and_top
+from solenoid_fmu.identification.campaign_data import corrected_curve, flux_sigma, hysteresis_half_width, virgin_and_top
 from solenoid_fmu.measure import FluxBranch, peak_curves
 from solenoid_fmu.realtime import PreisachHysteresis
 
@@ -76,7 +76,7 @@ def test_branch_mean_lies_within_its_sigma_of_the_curve(b_c_rel, spread_rel, den
                                             spread_rel=spread_rel, density=density)
     # two recordings: two loops to one peak, and rising peaks (the ascent past an earlier peak is virgin again)
     results = [recording(hyst, [1.5, 1.5]), recording(hyst, [0.5, 1.0, 1.6])]
-    i, psi, half = _corrected_curve(SimpleNamespace(results=results), 0.0)
+    i, psi, half = corrected_curve(SimpleNamespace(results=results), 0.0)
     # levels off the loops' tips: near its peak a loop's descent starts flat in flux (the current falls first),
     # so every loop's mean lies above the curve there, first pass or not (< 0.3 % at these peaks)
     peaks = np.array([b.peak_A for r in results for b in r.branches[::2]])
@@ -97,7 +97,7 @@ def test_branch_mean_lies_within_its_sigma_of_the_curve(b_c_rel, spread_rel, den
 
 def test_without_hysteresis_every_pass_has_the_same_mean():
     results = [recording(None, [1.5, 1.5]), recording(None, [0.5, 1.0, 1.6])]
-    i, psi, half = _corrected_curve(SimpleNamespace(results=results), 0.0)
+    i, psi, half = corrected_curve(SimpleNamespace(results=results), 0.0)
     assert np.max(np.abs(half)) < 1e-5 * np.max(psi)  # bin means of other samples
     assert np.allclose(psi, all_loops_mean(results, i), rtol=0, atol=1e-5 * np.max(psi))
     sel = i > 0.05
@@ -110,10 +110,26 @@ def test_a_recording_of_small_loops_only_is_left_out():
     hyst = PreisachHysteresis.with_coercive(float(psi_curve(2.0)), 0.04, b_c_rel=0.1, spread_rel=0.15)
     big = recording(hyst, [1.5, 1.5])
     small = recording(hyst, [0.5, 0.5])
-    i, psi, _ = _corrected_curve(SimpleNamespace(results=[big, small]), 0.0)
-    i1, psi1, _ = _corrected_curve(SimpleNamespace(results=[big]), 0.0)
+    i, psi, _ = corrected_curve(SimpleNamespace(results=[big, small]), 0.0)
+    i1, psi1, _ = corrected_curve(SimpleNamespace(results=[big]), 0.0)
     assert np.array_equal(i, i1) and np.array_equal(psi, psi1)
     # what it would have said: below the curve by more than its own loop near its peak
     m, w = virgin_and_top(small.branches, i)
     near = (i > 0.34) & (i < 0.46)
     assert np.all(m[near] < psi_curve(i[near]) - 0.5 * np.abs(w[near]))
+
+
+def test_the_one_stroke_path_weighs_with_the_same_loops():
+    """``hysteresis_half_width`` (the weights of the paper's one-stroke ``auglag`` path) takes the loops the joint
+    fit takes: a small-loop recording changes nothing; averaged over every loop it would have."""
+    hyst = PreisachHysteresis.with_coercive(float(psi_curve(2.0)), 0.04, b_c_rel=0.1, spread_rel=0.15)
+    big = recording(hyst, [1.5, 1.5])
+    small = recording(hyst, [0.5, 0.5])
+    i = np.array([0.2, 0.3, 0.45, 0.8, 1.2])
+    got = hysteresis_half_width(SimpleNamespace(results=[big, small]), i)
+    com_i, _, half = corrected_curve(SimpleNamespace(results=[big]), 0.0)
+    np.testing.assert_array_equal(got, np.interp(i, com_i, half))
+    every = [w for r in (big, small) for w in peak_curves(r.branches, com_i)[1]]
+    with np.errstate(all="ignore"):
+        old = 0.5 * np.abs(np.interp(i, com_i, np.nanmean(np.vstack(every), axis=0)))
+    assert np.max(np.abs(old / got - 1.0)) > 0.05

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
@@ -74,6 +76,27 @@ try:  # optional accelerator, see SPDSolver
     import pypardiso as _pardiso
 except ImportError:  # pragma: no cover - depends on the platform
     _pardiso = None
+
+
+def _locate_mkl_once() -> None:
+    """Find MKL's runtime library once per process, at import, and tell pypardiso where it is.
+
+    Without ``PYPARDISO_MKL_RT`` every ``PyPardisoSolver()`` globs the whole environment for the library
+    (0.3 s, once per FEM solver: minutes over the test suite). The variable is set once here, in the
+    importing thread, before this module has started any MKL thread, and never changed again (an earlier
+    version set and removed it around every construction while other threads ran, which is not
+    thread-safe: a subprocess died in glibc's allocator). A value the user set is kept."""
+    if _pardiso is None or os.environ.get("PYPARDISO_MKL_RT"):
+        return
+    try:
+        name = getattr(_pardiso.PyPardisoSolver(mtype=2).libmkl, "_name", None)
+    except Exception:  # pragma: no cover - no MKL runtime: SPDSolver reports it when used
+        return
+    if name:
+        os.environ["PYPARDISO_MKL_RT"] = name
+
+
+_locate_mkl_once()
 
 #: The direct solver of the Newton systems on this machine: "MKL PARDISO" or "SuperLU".
 LINEAR_SOLVER = "MKL PARDISO" if _pardiso is not None else "SuperLU"

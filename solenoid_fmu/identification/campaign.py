@@ -11,13 +11,13 @@ from tqdm import tqdm
 
 from ..errors import RecordingError
 from ..measure import Recording, commutation_curve, read_recording
-from .campaign_data import HOLD_KINDS, flux_points, force_points, hold_points
+from .campaign_data import HOLD_KINDS, corrected_curve, flux_points, force_points, hold_points
 from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
 from .flux_model import as_curve, as_geometry
 from .io import write_curve_files
 from .joint import identify_joint
 from .joint_result import result_from_joint
-from .measured import absolute_flux, group_flux, groups_of, hysteresis_half_width
+from .measured import absolute_flux, group_flux, groups_of
 from .report import write_report
 from .result import IdentificationResult
 
@@ -103,8 +103,9 @@ def _by_auglag(main: list, others, geom, start, mesh_size: float, cb, n_currents
     """Method ``auglag`` of :func:`identify_from_recordings` (the paper's): the commutation curve at one stroke,
     flux only. The result, the commutation curve and the other strokes' flux recordings for the report."""
     cc = commutation_curve(main)
-    i_sel, psi_sel = choose_currents(cc.i_A, cc.psi_Wb, n_currents)
-    sigma = hysteresis_half_width(cc, i_sel)
+    com_i, com_psi, half = corrected_curve(cc, 0.0)  # the joint fit's branch means (virgin_and_top)
+    i_sel, psi_sel = choose_currents(com_i, com_psi, n_currents)
+    sigma = np.interp(i_sel, com_i, half)
     res = identify_bh(i_sel, psi_sel, cc.position_m, geom, start, mesh_size=mesh_size, method="auglag",
                       progress=cb, sigma_Wb=sigma, **kwargs)
     res.extra["recordings"] = [str(r.path) for r in main]

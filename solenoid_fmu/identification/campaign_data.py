@@ -56,7 +56,8 @@ from .measured import force_stroke_curve, groups_of
 
 __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
            "flux_points", "flux_sigma", "force_points", "hold_points", "HOLD_KINDS", "eddy_split", "resistance_choice",
-           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN", "HEADER_OFF_SIGMAS", "MAJOR_LOOP_SHARE"]
+           "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN", "HEADER_OFF_SIGMAS", "MAJOR_LOOP_SHARE",
+           "corrected_curve", "hysteresis_half_width", "virgin_and_top"]
 
 #: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
 PSI_FLOOR_REL = 2e-3
@@ -179,7 +180,7 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
     # with several strokes fewer currents each: the strokes pin the curve together (FEM cost ~ points)
     n_each = n_currents if len(ccs) == 1 else max(5, -(-2 * n_currents // (len(ccs) + 1)))
     for key, cc in sorted(ccs.items()):
-        com_i, com_psi, half = _corrected_curve(cc, G)
+        com_i, com_psi, half = corrected_curve(cc, G)
         i_sel, psi_sel = choose(com_i, com_psi, n_each)
         half_w = np.interp(i_sel, com_i, half)
         sigma = flux_sigma(com_i, com_psi, half, i_sel, _track_sigma_rel(cc, camp) if heated else 0.0)
@@ -261,7 +262,7 @@ def _track_sigma_rel(cc, camp) -> float:
     return float(np.sqrt(np.mean(np.square(rel))) / np.sqrt(len(rel)))
 
 
-def _corrected_curve(cc, G_S: float, n: int = 101) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def corrected_curve(cc, G_S: float, n: int = 101) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Commutation curve (i [A], Psi [Wb]) and rate-independent loop half-width [Wb] of ``cc``'s
     branches with the eddy current ``G dPsi/dt`` taken out of the current.
 
@@ -283,6 +284,15 @@ def _corrected_curve(cc, G_S: float, n: int = 101) -> tuple[np.ndarray, np.ndarr
         half = 0.5 * np.abs(np.nanmean(wst[:, keep], axis=0))
     half = np.where(np.isfinite(half), half, 0.0)
     return grid[keep], psi, half
+
+
+def hysteresis_half_width(cc, i_A) -> np.ndarray:
+    """Half the rate-independent loop width [Wb] of a commutation curve's branches at currents ``i_A`` [A]:
+    how far the branch mean may sit from the magnetization curve the FEM computes. The same loops as the
+    joint fit's points (:func:`corrected_curve` without an eddy current: each recording's first ascent
+    and the descent from its highest peak)."""
+    com_i, _, half = corrected_curve(cc, 0.0)
+    return np.interp(i_A, com_i, half)
 
 
 def virgin_and_top(branches, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import RecordingError
-from ..measure import flux_linkage, peak_curves
+from ..measure import flux_linkage
 
-__all__ = ["absolute_flux", "group_flux", "groups_of", "hysteresis_half_width", "force_stroke_curve"]
+__all__ = ["absolute_flux", "group_flux", "groups_of", "force_stroke_curve"]
 
 
 def absolute_flux(recs) -> tuple[list, list[str]]:
@@ -41,20 +41,6 @@ def group_flux(recs) -> tuple[list, list[list]]:
     groups = groups_of(recs)
     ordered = sorted(groups.values(), key=lambda g: (-len(g), -max(float(np.max(r.current_A)) for r in g)))
     return ordered[0], ordered[1:]
-
-
-def hysteresis_half_width(cc, i_A) -> np.ndarray:
-    """Half the width of the hysteresis loop [Wb] (descending minus ascending branch, averaged
-    over the peaks reaching each level) of a commutation curve at currents ``i_A`` [A]: how far the
-    branch mean may sit from the magnetization curve the FEM computes."""
-    branches = [b for r in cc.results for b in r.branches]
-    grid = np.linspace(0.0, max(b.peak_A for b in branches), 101)
-    _, widths = peak_curves(branches, grid)
-    stack = np.vstack(widths)
-    ok = np.isfinite(stack).any(axis=0)
-    with np.errstate(all="ignore"):
-        W = np.nanmean(stack[:, ok], axis=0)
-    return 0.5 * np.abs(np.interp(i_A, grid[ok], W))
 
 
 def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
