@@ -4,7 +4,8 @@ The twelve campaigns of ``tests/test_identify_campaigns.py`` (seven published st
 none / heating / eddy ladder / hysteresis / heating + hysteresis on randomized protocols; truth maps from
 a finer, per-stroke mesh). Prints, per campaign, the largest relative error of Psi and F over 4 strokes x
 5 currents (0.25-2 A) for the literature curve (no identification, the baseline of this run) and for
-the identified curve, the stage the held-out prediction chose, and the identification's wall time; then
+the identified curve, the stage the held-out prediction chose, the identification's wall time and how
+far the identified B strays from the truth in units of its own reported 1-sigma band; then
 the loop started from the identified maps (``tests/test_loop_identified.py``): effects found against the
 truth's, the pooled held-out error of the bare identified model and of the final one, and its wall time.
 
@@ -19,12 +20,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from steelcampaigns import CAMPAIGNS, N_CURRENTS, SAMPLES  # noqa: E402
 from test_loop_identified import EXPECTED, loop_on_identified_recordings  # noqa: E402
-from truthsteels import prediction_errors, truth_dir  # noqa: E402
+from truthsteels import prediction_errors, truth_curve, truth_dir  # noqa: E402
 
 from solenoid_fmu.field import load_material  # noqa: E402
 from solenoid_fmu.identification import identify_from_recordings  # noqa: E402
@@ -32,11 +35,24 @@ from solenoid_fmu.realtime import load_tables  # noqa: E402
 from solenoid_fmu.rig.protocols import random_campaign  # noqa: E402
 
 
+def band_coverage(res, name: str) -> float:
+    """The identified curve's largest error in B against the truth curve, in units of the identification's own
+    1-sigma band (``B_uncertainty``), over the identified H range: about 2 or less if the band is honest."""
+    unc = res.extra["B_uncertainty"]
+    H, sig = np.asarray(unc["H_A_per_m"]), np.asarray(unc["rel_1sigma"])
+    lo, hi = res.identified_H_range_A_per_m
+    sel = (H >= lo) & (H <= hi) & (sig > 0)
+    if not sel.any():
+        return float("nan")
+    err = np.abs(res.curve.B_of_H(H[sel]) / truth_curve(name).B_of_H(H[sel]) - 1.0)
+    return float(np.max(err / sig[sel]))
+
+
 def main(n: int | None = None) -> list[dict]:
     rows = []
     literature = load_material()
     print(f"{'campaign':36s} {'literature Psi':>14s} {'F':>7s} {'identified Psi':>15s} {'F':>7s}  chosen"
-          f"{'':14s} wall [s]")
+          f"{'':14s} wall [s]  B band: max |err|/sigma")
     for name, effects, seed in CAMPAIGNS[:n]:
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "campaign"
@@ -52,11 +68,12 @@ def main(n: int | None = None) -> list[dict]:
         after = prediction_errors(res.curve, name)
         row = {"campaign": f"{name} {effects or 'none'} #{seed}", "lit_psi": before["psi_max_rel"],
                "lit_F": before["F_max_rel"], "psi": after["psi_max_rel"], "F": after["F_max_rel"],
-               "chosen": res.extra.get("chosen", ""), "wall_s": wall, "loop": loop,
+               "chosen": res.extra.get("chosen", ""), "wall_s": wall, "loop": loop, "band": band_coverage(res, name),
                "want": sorted(EXPECTED[e] for e in effects.split(",") if e)}
         rows.append(row)
         print(f"{row['campaign']:36s} {row['lit_psi'] * 100:13.2f}% {row['lit_F'] * 100:6.2f}% "
-              f"{row['psi'] * 100:14.2f}% {row['F'] * 100:6.2f}%  {row['chosen']:20s} {wall:7.1f}", flush=True)
+              f"{row['psi'] * 100:14.2f}% {row['F'] * 100:6.2f}%  {row['chosen']:20s} {wall:7.1f}  "
+              f"{row['band']:9.2f}", flush=True)
     worst_psi = max(r["psi"] for r in rows)
     worst_F = max(r["F"] for r in rows)
     walls = sorted(r["wall_s"] for r in rows)
