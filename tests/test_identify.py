@@ -283,3 +283,32 @@ def test_point_model_jacobian_matches_finite_differences_in_the_curve():
         e[k] = h
         fd = (pm.values(p + e) - pm.values(p - e)) / (2 * h)
         np.testing.assert_allclose(J[:, k], fd, rtol=5e-3, atol=1e-4 * np.abs(fd).max())
+
+
+def _points(curve, sigma_rel, mesh_size=3.0):
+    """Flux points of ``curve`` at two strokes and three currents (exact FEM values, ``sigma_rel`` of each)."""
+    from solenoid_fmu.identification.campaign_data import MeasuredPoint
+
+    geom = load_geometry()
+    pts = []
+    for x in (1.0e-3, 2.5e-3):
+        i = np.array([0.3, 0.8, 1.8])
+        psi = fem_flux(geom, curve, i, x, mesh_size)
+        pts += [MeasuredPoint("psi", float(a), x, float(p), sigma_rel * float(p), f"flux@{x * 1e3:g}mm", "test")
+                for a, p in zip(i, psi, strict=True)]
+    return pts
+
+
+def test_stage_2_runs_only_where_stage_1_leaves_something_to_fit():
+    """joint.STAGE1_ENOUGH_RMS: points a scaled and stretched literature curve explains within their sigma stop
+    after stage 1 (its two parameters fit them); points of another shape, 0.2 % sigma, go on to stage 2."""
+    from solenoid_fmu.identification.joint import STAGE1_ENOUGH_RMS, identify_joint
+
+    geom = load_geometry()
+    lit = load_material()
+    near = identify_joint(_points(scaled_curve(lit, np.log(1.05), np.log(0.8)), 0.002), geom, lit, 3.0, max_nfev=3)
+    assert list(near.candidates) == ["stage 1"] and near.chosen == "stage 1"
+    assert near.candidates["stage 1"]["rms_in"] <= STAGE1_ENOUGH_RMS
+    other = identify_joint(_points(_hill_steel(), 0.002), geom, lit, 3.0, max_nfev=3)
+    assert other.candidates["stage 1"]["rms_in"] > STAGE1_ENOUGH_RMS
+    assert "stage 2 (prior 1)" in other.candidates
