@@ -63,8 +63,7 @@ class PointModel:
         # every gap an evaluation and a Jacobian visit keeps its quadrature data (each force point adds its
         # +-dx: with the default 16 the demo campaign rebuilt them 420 times, 9 of its 125 s)
         lo_x, hi_x = geometry.stroke.min_m, geometry.stroke.max_m
-        gaps = set(self.x_m.tolist()) | {float(np.clip(x + s * FORCE_FD_DX_M, lo_x, hi_x))
-                                         for x in self.x_m[self.kind == "force"] for s in (1.0, -1.0)}
+        gaps = set(self.x_m.tolist()) | {_fd_gap(float(x), lo_x, hi_x) for x in self.x_m[self.kind == "force"]}
         self.solver.config_cache = max(self.solver.config_cache, len(gaps) + 1)
         self.u = [None] * len(points)
         self._version = 0
@@ -177,7 +176,7 @@ class PointModel:
                 if self.kind[k] != "force":
                     continue
                 x0 = float(self.x_m[k])
-                x = x0 + FORCE_FD_DX_M if x0 + FORCE_FD_DX_M <= hi_x else max(x0 - FORCE_FD_DX_M, lo_x)
+                x = _fd_gap(x0, lo_x, hi_x)
                 if x == x0:
                     continue
                 sol = s.solve(float(self.i_A[k]), x, u0=self.u[k], forces=False)
@@ -198,3 +197,9 @@ class PointModel:
         B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
         vol = 2 * np.pi * cfg.dx[s.steel] * cfg.r[s.steel]
         return s.material.H_of_B(B).ravel(), vol.ravel()
+
+
+def _fd_gap(x0_m: float, lo_m: float, hi_m: float) -> float:
+    """The gap [m] of the force sensitivity's one-sided difference at ``x0_m``: :data:`FORCE_FD_DX_M` towards the
+    larger gap, towards the smaller one at the stroke's end (``lo_m`` .. ``hi_m``)."""
+    return x0_m + FORCE_FD_DX_M if x0_m + FORCE_FD_DX_M <= hi_m else max(x0_m - FORCE_FD_DX_M, lo_m)
