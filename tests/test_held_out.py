@@ -54,3 +54,24 @@ def test_where_the_fit_stands_adds_no_step():
     for g in np.unique(GROUPS):
         sel = GROUPS == g
         np.testing.assert_allclose(at_off[sel], J[sel] @ (_fit(J[~sel], y[~sel]) - opt), rtol=0, atol=EXACT)
+
+
+def test_the_b_band_widens_with_the_held_out_rms():
+    """The B(H) band (identified_range) is scaled by max(in-sample RMS, held-out RMS, 1) sigma: a curve that
+    predicts the left-out recordings worse than it fits them gets a wider band and a narrower identified range."""
+    from solenoid_fmu.field import load_material
+    from solenoid_fmu.identification.joint_result import band_noise_scale
+    from solenoid_fmu.identification.parametrization import fit_to_curve
+    from solenoid_fmu.identification.uncertainty import identified_range
+
+    assert band_noise_scale({"rms_in": 0.5, "rms_out": 2.5}) == 2.5
+    assert band_noise_scale({"rms_in": 1.5, "rms_out": 1.2}) == 1.5
+    assert band_noise_scale({"rms_in": 0.3, "rms_out": 0.7}) == 1.0
+    model, theta = fit_to_curve(load_material(), m=9)
+    Jb = np.random.default_rng(3).normal(size=(30, len(theta))) * 100.0  # flux data seeing every parameter
+    rng1, H1, sd1 = identified_range(model, theta, Jb, 1.0, 6e4)
+    rng3, H3, sd3 = identified_range(model, theta, Jb, 3.0, 6e4)
+    np.testing.assert_array_equal(H1, H3)
+    assert np.all(sd3 >= sd1) and np.max(sd3 / sd1) > 2.0  # data-dominated there: about the factor 3
+    assert rng3[1] > rng3[0] and rng1[0] <= rng3[0] and rng3[1] <= rng1[1]
+    assert (rng3[1] - rng3[0]) < (rng1[1] - rng1[0])
