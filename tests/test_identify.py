@@ -301,16 +301,16 @@ def _points(curve, sigma_rel, mesh_size=3.0):
     return pts
 
 
-def test_stage_2_runs_only_where_stage_1_leaves_something_to_fit():
-    """joint.STAGE1_ENOUGH_RMS: points a scaled and stretched literature curve explains within their sigma stop
-    after stage 1 (its two parameters fit them); points of another shape, 0.2 % sigma, go on to stage 2."""
-    from solenoid_fmu.identification.joint import STAGE1_ENOUGH_RMS, identify_joint
+def test_stage_2_runs_only_where_stage_1_leaves_something_to_predict():
+    """joint.STAGE1_ENOUGH_HELD_OUT: points a scaled and stretched literature curve predicts held out within their
+    sigma stop after stage 1 (its two parameters fit them); points of another shape, 0.2 % sigma, go on to stage 2."""
+    from solenoid_fmu.identification.joint import STAGE1_ENOUGH_HELD_OUT, identify_joint
 
     geom = load_geometry()
     lit = load_material()
     near = identify_joint(_points(scaled_curve(lit, np.log(1.05), np.log(0.8)), 0.002), geom, lit, 3.0, max_nfev=3)
     assert list(near.candidates) == ["stage 1"] and near.chosen == "stage 1"
-    assert near.candidates["stage 1"]["rms_in"] <= STAGE1_ENOUGH_RMS
+    assert near.candidates["stage 1"]["rms_out"] <= STAGE1_ENOUGH_HELD_OUT
     other = identify_joint(_points(_hill_steel(), 0.002), geom, lit, 3.0, max_nfev=3)
-    assert other.candidates["stage 1"]["rms_in"] > STAGE1_ENOUGH_RMS
+    assert other.candidates["stage 1"]["rms_out"] > STAGE1_ENOUGH_HELD_OUT
     assert "stage 2 (prior 1)" in other.candidates
