@@ -314,3 +314,21 @@ def test_stage_2_runs_only_where_stage_1_leaves_something_to_predict():
     other = identify_joint(_points(_hill_steel(), 0.002), geom, lit, 3.0, max_nfev=3)
     assert other.candidates["stage 1"]["rms_out"] > STAGE1_ENOUGH_HELD_OUT
     assert "stage 2 (prior 1)" in other.candidates
+
+
+def test_the_band_belongs_to_the_chosen_curve_when_stage_2_loses(monkeypatch):
+    """Stage 2 run (the held-out shortcut switched off) on points stage 1 fits exactly: held-out prediction
+    keeps stage 1, and the fit's theta (the B(H) band's linearization point) is stage 1's curve, not the
+    stage-2 run's."""
+    from solenoid_fmu.identification import joint
+
+    monkeypatch.setattr(joint, "STAGE1_ENOUGH_HELD_OUT", -1.0)
+    geom = load_geometry()
+    lit = load_material()
+    fit = joint.identify_joint(_points(scaled_curve(lit, np.log(1.05), np.log(0.8)), 0.002), geom, lit, 3.0,
+                               max_nfev=3)
+    assert "stage 2 (prior 1)" in fit.candidates and fit.chosen == "stage 1"
+    theta2 = fit.candidates["stage 2 (prior 1)"]["theta"]
+    assert np.max(np.abs(theta2 - fit.theta_stage1)) > 1e-3  # the stage-2 run moved
+    np.testing.assert_array_equal(fit.theta, fit.theta_stage1)  # the band is linearized at stage 1's curve
+    assert fit.J_w.shape == (len(fit.points), len(fit.theta))

@@ -243,6 +243,8 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev:
         c["rms_out"] = float(np.sqrt(np.mean(c["r_out"] ** 2)))
     best = min(cands, key=lambda k: cands[k]["rms_out"])
     theta_final, J_final = J_last
+    if best == "stage 1" and not enough:  # stage 2 ran and lost: the band belongs to stage 1's curve
+        theta_final, J_final = theta1, jac(v1) @ node_jacobian(len(model.H_nodes))
     return JointFit(curve=cands[best]["curve"], chosen=best, candidates=cands, model=with_peak_of(model, theta_final),
                     theta=theta_final,
                     J_w=J_final, theta_stage1=theta1, pred_start=pred_start, pred=cands[best]["pred"],
