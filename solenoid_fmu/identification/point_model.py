@@ -200,7 +200,8 @@ class PointModel:
                             for x_, u_ in ((x0, self.u[k]), (x, su)))
                 dw = _GridTable(B_top, [c.energy_density for c in _flat(pairs)], h)
                 for k, x0, x, su in force:
-                    J[k] = (self._dcoenergy(s.config(x), su, dw) - self._dcoenergy(s.config(x0), self.u[k], dw)) / (x - x0)
+                    J[k] = (self._dcoenergy(s.config(x), su, dw)
+                            - self._dcoenergy(s.config(x0), self.u[k], dw)) / (x - x0)
         J[self.kind == "force"] *= -1.0  # the force closes the gap x: F = -dW'/dx
         return J
 
