@@ -49,7 +49,7 @@ def band_noise_scale(cand: dict) -> float:
     in-sample RMS, the linearization's band (data noise alone) understates the curve's error. On the twelve
     truth-steel campaigns (issue 20) this took the identified B's largest error against the truth from 3.6 to
     1.8 band sigmas on 9SMn28K-heating, 5.2 to 3.0 on AISI_1008-eddy-ladder and 3.6 to 2.3 on random-2; where
-    the held-out RMS is at or below 1 (DC03, VacoferS2, random-3: 4.4-4.8) the band still leaves out the
+    the held-out RMS is at or below 1 (DC03, VacoferS2, random-3: 4.3-4.8) the band still leaves out the
     prior's and the parametrization's bias."""
     return float(max(cand["rms_in"], cand["rms_out"], 1.0))
 

@@ -144,12 +144,6 @@ class PointModel:
         g = self.solver.grad(cfg, u)[:, st]
         return np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[st], 2 * np.pi * cfg.dx[st] * cfg.r[st]
 
-    def _dcoenergy(self, cfg, u, table) -> np.ndarray:
-        """dW'/dtheta [J per parameter unit] at the solution u (envelope theorem, no solve):
-        ``-int dw/dtheta dV`` with dw/dtheta from ``table`` (:class:`_GridTable` of the energy density)."""
-        B, vol = self._B_steel(cfg, u)
-        return -table.weighted(B, vol)
-
     def jacobian(self, theta, h: float = 1e-4) -> np.ndarray:
         """d value / d theta, shape (points, parameters) [Wb or N per parameter unit]."""
         theta = np.asarray(theta, dtype=float)
@@ -194,14 +188,13 @@ class PointModel:
                 sol = s.solve(float(self.i_A[k]), x, u0=self.u[k], forces=False)
                 self.solves += 1
                 self.newton_steps += max(sol.newton_iterations, 1)
-                force.append((k, x0, x, sol.u))
+                # |B| and volumes of the steel at both gaps: dW'/dtheta = -int dw/dtheta dV (envelope theorem)
+                force.append((k, x - x0, self._B_steel(s.config(x0), self.u[k]), self._B_steel(s.config(x), sol.u)))
             if force:
-                B_top = max(float(np.max(self._B_steel(s.config(x_), u_)[0])) for k, x0, x, su in force
-                            for x_, u_ in ((x0, self.u[k]), (x, su)))
+                B_top = max(float(np.max(f[0])) for _, _, f0, f1 in force for f in (f0, f1))
                 dw = _GridTable(B_top, [c.energy_density for c in _flat(pairs)], h)
-                for k, x0, x, su in force:
-                    J[k] = (self._dcoenergy(s.config(x), su, dw)
-                            - self._dcoenergy(s.config(x0), self.u[k], dw)) / (x - x0)
+                for k, dx, f0, f1 in force:
+                    J[k] = (dw.weighted(*f0) - dw.weighted(*f1)) / dx
         J[self.kind == "force"] *= -1.0  # the force closes the gap x: F = -dW'/dx
         return J
 
