@@ -282,7 +282,7 @@ def _identify(run: _Run, geom, ident_recs, suffix: str):
     ident = identify_from_recordings(ident_recs, geometry=geom, mesh_size=cfg["identify_mesh_size"],
                                      start_material=run.start_material, out_csv=run.out / "material" / "material.csv",
                                      report_dir=run.figures_dir("identify"), progress=run.progress is not None,
-                                     n_currents=cfg["n_currents"], **max_nfev)
+                                     n_currents=cfg["n_currents"], workers=run.workers, **max_nfev)
     sweeps = ident.summary().get("equivalent_sweeps", float("nan"))
     run.say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
             f"{sweeps:.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")
@@ -437,7 +437,9 @@ def add_cli(sub) -> None:
     p.add_argument("--geometry", help="geometry TOML (default: the packaged PS45)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="full",
                    help="FEM grid quality: full (default), quick (coarse, for checks) or smoke (coarsest, tests)")
-    p.add_argument("--workers", type=process_count, help="processes for the maps sweep (default: all cores)")
+    p.add_argument("--workers", type=process_count,
+                   help="processes for the identification's FEM points (at most 4 used) and the maps sweep "
+                   "(default: all cores)")
     p.add_argument("--json", action="store_true", help="print summary.json's content on stdout")
     p.set_defaults(func=_cli)
 

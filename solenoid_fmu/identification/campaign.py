@@ -26,7 +26,7 @@ __all__ = ["identify_from_recordings"]
 
 def identify_from_recordings(recordings, *, geometry=None, start_material=None, mesh_size=None, out_csv=None,
                              report_dir=None, progress=True, method: str = "gn", n_currents: int = DEFAULT_N_CURRENTS,
-                             **kwargs) -> IdentificationResult:
+                             workers: int | None = None, **kwargs) -> IdentificationResult:
     """Identify B(H) from test-rig recordings (the pipeline's entry point).
 
     Parameters
@@ -51,8 +51,11 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
     method : {"gn", "auglag"}
     n_currents : int
         Currents of the measured commutation curve used by the fit (:func:`choose_currents`).
+    workers : int, optional
+        Processes that solve the joint fit's FEM points (method ``gn``), whole strokes each; default: the cores
+        this process may use, at most 4 (:func:`~.point_pool.default_workers`); the curve does not depend on it.
     **kwargs
-        Passed to :func:`identify_bh`.
+        Passed to :func:`identify_bh` (``auglag``) or :func:`~.joint.identify_joint` (``gn``).
 
     Raises
     ------
@@ -86,7 +89,8 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
         if method == "auglag":  # the paper's method: one stroke, flux only
             res, cc, others_used = _by_auglag(main, others, geom, start, mesh_size, cb, n_currents, kwargs)
         else:
-            res, cc, others_used = _by_joint_fit(recs, flux, unusable, geom, start, mesh_size, cb, n_currents, kwargs)
+            res, cc, others_used = _by_joint_fit(recs, flux, unusable, geom, start, mesh_size, cb, n_currents,
+                                                 {**kwargs, "workers": workers})
     finally:
         if bar is not None:
             bar.close()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..argtypes import process_count
 from ..errors import SolenoidError
 from ..fileio import refuse_overwriting_inputs, require_directory
 from .campaign import identify_from_recordings
@@ -27,6 +28,8 @@ def add_cli(sub) -> None:
                    help="gn: Gauss-Newton with adjoint Jacobians (default); auglag: nlopt AUGLAG+BOBYQA (paper)")
     p.add_argument("--mesh-size", type=float, default=None, help=f"FEM mesh size (default {DEFAULT_MESH_SIZE:g})")
     p.add_argument("--max-evals", type=int, default=None, help="budget of FEM sweeps of the optimizer")
+    p.add_argument("--workers", type=process_count, default=None,
+                   help="processes for the FEM points of method gn, whole strokes each (default: all cores, at most 4)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=_cli)
 
@@ -45,7 +48,7 @@ def _cli(args) -> int:
         refuse_overwriting_inputs(require_directory(args.report, "--report"), inputs, written=[])
     res = identify_from_recordings(args.recordings, geometry=args.geometry, start_material=args.start_material,
                                    mesh_size=args.mesh_size, out_csv=args.output, report_dir=args.report,
-                                   progress=not args.json, method=args.method, **kw)
+                                   progress=not args.json, method=args.method, workers=args.workers, **kw)
     if args.json:
         s = res.summary()
         s.pop("measured_commutation", None)

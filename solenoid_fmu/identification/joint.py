@@ -35,6 +35,7 @@ from ..errors import SolenoidError
 from .fit import projected_lm
 from .parametrization import fit_to_curve, project_unimodal, scaled_curve, with_peak_of
 from .point_model import PointModel
+from .point_pool import default_workers
 
 __all__ = ["JointFit", "identify_joint", "stage2_nodes", "held_out_residuals", "PRIOR_WEIGHTS", "node_values",
            "node_theta"]
@@ -194,7 +195,7 @@ def held_out_residuals(J_w: np.ndarray, r_w: np.ndarray, groups: np.ndarray, pri
 
 
 def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev: int | None = None,
-                   progress=None) -> JointFit:
+                   progress=None, workers: int | None = None) -> JointFit:
     """Fit B(H) to measured points (see the module docstring).
 
     Parameters
@@ -208,6 +209,10 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev:
         :data:`STAGE1_NFEV`); default :data:`STAGE2_NFEV`.
     progress : callable, optional
         ``progress(evaluations, rms_weighted)`` after every FEM evaluation.
+    workers : int, optional
+        Processes that solve the points, whole strokes each (:mod:`.point_worker`); default
+        :func:`~.point_pool.default_workers` (the cores this process may use, at most 4); 1 solves them
+        all in this process. The result does not depend on it.
     """
     if len(points) < 3:
         raise SolenoidError(f"identification needs at least 3 measured points, got {len(points)}")
@@ -219,7 +224,15 @@ def identify_joint(points, geometry, start_curve, mesh_size: float, *, max_nfev:
     if not (np.all(np.isfinite(meas)) and np.all(sig > 0)):
         raise SolenoidError("identification: measured points must be finite with positive uncertainty")
     pm = PointModel(geometry, [(p.kind, p.i_A, p.x_m) for p in points], lambda th: start_curve, mesh_size,
-                    start_curve)
+                    start_curve, workers=default_workers() if workers is None else int(workers))
+    try:
+        return _fit(pm, points, meas, sig, groups, start_curve, max_nfev, progress, t0)
+    finally:
+        pm.close()
+
+
+def _fit(pm: PointModel, points, meas, sig, groups, start_curve, max_nfev: int, progress, t0: float) -> JointFit:
+    """The two stages of :func:`identify_joint` on the point model ``pm``."""
     history = []
 
     def res(theta):

@@ -21,6 +21,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..field import Solver
+from .point_pool import WorkerPool, split_by_stroke
 
 __all__ = ["PointModel", "FORCE_FD_DX_M", "NEWTON_RTOL_IDENTIFY"]
 
@@ -54,7 +55,7 @@ class PointModel:
         Any curve, to build the solver.
     """
 
-    def __init__(self, geometry, points, curve_fn, mesh_size: float, start_curve):
+    def __init__(self, geometry, points, curve_fn, mesh_size: float, start_curve, workers: int = 1):
         self.solver = Solver(geometry, start_curve, mesh_size)
         self.solver.rtol = NEWTON_RTOL_IDENTIFY
         self.kind = np.array([p[0] for p in points])
@@ -78,6 +79,28 @@ class PointModel:
         self.evaluations = 0
         self.first_eval_steps = 0
         self._cache: tuple = (None, None)
+        self.pool = None
+        if workers > 1:
+            groups = split_by_stroke(self.x_m, np.where(self.kind == "force", 2.0, 1.0), workers)
+            if len(groups) > 1:
+                pts = [(str(k), float(i), float(x)) for k, i, x in zip(self.kind, self.i_A, self.x_m, strict=True)]
+                self.pool = WorkerPool(geometry, pts, mesh_size, start_curve, groups)
+
+    def close(self) -> None:
+        """Stop the worker processes, if any (the model still answers :meth:`steel_H` afterwards)."""
+        if self.pool is not None:
+            self.pool.close()
+            self.pool = None
+
+    def _ask(self, msg) -> list:
+        """``msg`` to the workers; per worker (point indices, result); their solves counted here."""
+        out = []
+        for g, (result, counters) in zip(self.pool.groups, self.pool.ask_all(msg), strict=True):
+            self.solves += counters[0]
+            self.newton_steps += counters[1]
+            self.adjoint_solves += counters[2]
+            out.append((g, result))
+        return out
 
     @property
     def curve_fn(self):
@@ -93,6 +116,15 @@ class PointModel:
         return len(self.i_A)
 
     def _solve_all(self, theta) -> np.ndarray:
+        if self.pool is not None:
+            out = np.empty(self.n)
+            steps0 = self.newton_steps
+            for g, vals in self._ask(("values", self.curve_fn(theta))):
+                out[g] = vals
+            if self.evaluations == 0:
+                self.first_eval_steps = self.newton_steps - steps0
+            self.evaluations += 1
+            return out
         s = self.solver
         s.material = self.curve_fn(theta)
         out = np.empty(self.n)
@@ -144,19 +176,17 @@ class PointModel:
         g = self.solver.grad(cfg, u)[:, st]
         return np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[st], 2 * np.pi * cfg.dx[st] * cfg.r[st]
 
-    def jacobian(self, theta, h: float = 1e-4) -> np.ndarray:
-        """d value / d theta, shape (points, parameters) [Wb or N per parameter unit]."""
-        theta = np.asarray(theta, dtype=float)
-        self.values(theta)
+    def point_fields(self) -> tuple[dict, list]:
+        """What the Jacobian needs of each point's solution at the last evaluated curve, by point index:
+        flux points ``{k: (|B| [T], adjoint weights)}`` at the steel's quadrature points, force points
+        ``[(k, dx [m], (|B|, volumes) at x, (|B|, volumes) at x + dx)]`` (one solve each)."""
         s = self.solver
-        pairs = self._perturbed(theta, h)
-        J = np.zeros((self.n, len(theta)))
         with threadpool_limits(limits=1):
-            # flux points: adjoint (K_t lambda = psi weights), dPsi = -int grad(lambda).grad(u) dnu/r, with
-            # dnu/dtheta tabulated once per Jacobian (one lookup per point instead of one per curve)
-            flux = [k for k in self.order if self.kind[k] == "psi"]
-            field = {}
-            for k in flux:
+            # flux points: adjoint (K_t lambda = psi weights), dPsi = -int grad(lambda).grad(u) dnu/r
+            flux = {}
+            for k in self.order:
+                if self.kind[k] != "psi":
+                    continue
                 cfg = s.config(float(self.x_m[k]))
                 u = self.u[k]
                 w = cfg.psi_weights.copy()
@@ -168,14 +198,9 @@ class PointModel:
                 g = s.grad(cfg, u)[:, st]
                 gl = s.grad(cfg, lam)[:, st]
                 b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r[st] ** 2
-                field[k] = (np.sqrt(b2), (g[0] * gl[0] + g[1] * gl[1]) * cfg.w_over_r[st])
-            if flux:
-                B_top = max(float(np.max(b)) for b, _ in field.values())
-                dnu = _GridTable(B_top, [lambda B, c=c: c.nu_of_b2(B * B)[0] for c in _flat(pairs)], h)
-                for k in flux:
-                    J[k] = -dnu.weighted(*field[k])
-            # force points: one-sided difference in x of dW'/dtheta at constant current, from the point's
-            # own solution (no solve) and one solve a step away (warm-started from the point's solution)
+                flux[int(k)] = (np.sqrt(b2), (g[0] * gl[0] + g[1] * gl[1]) * cfg.w_over_r[st])
+            # force points: the steel's field at the point's own solution (no solve) and one solve a step away
+            # (warm-started from the point's solution)
             lo_x, hi_x = s.geometry.stroke.min_m, s.geometry.stroke.max_m
             force = []
             for k in self.order:
@@ -188,8 +213,34 @@ class PointModel:
                 sol = s.solve(float(self.i_A[k]), x, u0=self.u[k], forces=False)
                 self.solves += 1
                 self.newton_steps += max(sol.newton_iterations, 1)
-                # |B| and volumes of the steel at both gaps: dW'/dtheta = -int dw/dtheta dV (envelope theorem)
-                force.append((k, x - x0, self._B_steel(s.config(x0), self.u[k]), self._B_steel(s.config(x), sol.u)))
+                force.append((int(k), x - x0, self._B_steel(s.config(x0), self.u[k]),
+                              self._B_steel(s.config(x), sol.u)))
+        return flux, force
+
+    def jacobian(self, theta, h: float = 1e-4) -> np.ndarray:
+        """d value / d theta, shape (points, parameters) [Wb or N per parameter unit].
+
+        Flux points: dPsi/dtheta = -int grad(lambda).grad(u) dnu/dtheta / r (adjoint), force points: the
+        one-sided difference in x of dW'/dtheta = -int dw/dtheta dV (envelope theorem), with dnu/dtheta and
+        dw/dtheta tabulated once per Jacobian (:class:`_GridTable`: one lookup per quadrature point instead of
+        one per curve). The per-point fields come from :meth:`point_fields`, here or in the workers."""
+        theta = np.asarray(theta, dtype=float)
+        self.values(theta)
+        if self.pool is None:
+            flux, force = self.point_fields()
+        else:
+            flux, force = {}, []
+            for g, (fl, fo) in self._ask(("fields",)):
+                flux.update({g[k]: v for k, v in fl.items()})
+                force += [(g[k], dx, f0, f1) for k, dx, f0, f1 in fo]
+        pairs = self._perturbed(theta, h)
+        J = np.zeros((self.n, len(theta)))
+        with threadpool_limits(limits=1):
+            if flux:
+                B_top = max(float(np.max(b)) for b, _ in flux.values())
+                dnu = _GridTable(B_top, [lambda B, c=c: c.nu_of_b2(B * B)[0] for c in _flat(pairs)], h)
+                for k, f in flux.items():
+                    J[k] = -dnu.weighted(*f)
             if force:
                 B_top = max(float(np.max(f[0])) for _, _, f0, f1 in force for f in (f0, f1))
                 dw = _GridTable(B_top, [c.energy_density for c in _flat(pairs)], h)
