@@ -39,12 +39,15 @@ lint: setup
 
 # --dist worksteal: a worker that runs dry takes queued tests from the other (the minute-long campaign
 # tests otherwise leave one core idle at the end).
+# pytest-xdist runs one test per core already: an identification's own FEM workers (solenoid_fmu.identification.
+# point_pool) would only add their start-up, so the tests run it in one process (tests/test_point_workers.py
+# checks the workers themselves).
 test: setup lint
-	$(BIN)/python -m pytest -n 2 --dist worksteal -q
+	SOLENOID_FMU_WORKERS=1 $(BIN)/python -m pytest -n 2 --dist worksteal -q
 
 # Everything but the tests marked slow (over ~20 s each): a quick check while working (~1.5 min on 2 cores).
 test-fast: setup lint
-	$(BIN)/python -m pytest -n 2 --dist worksteal -q -m "not slow"
+	SOLENOID_FMU_WORKERS=1 $(BIN)/python -m pytest -n 2 --dist worksteal -q -m "not slow"
 
 # The main job: identify B(H) from the demo campaign, maps, eddy parameter, FMUs, validate,
 # diagnose, improve; report at build/ps45-demo/report.html, summary.json beside it.

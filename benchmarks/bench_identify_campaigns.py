@@ -5,7 +5,8 @@ none / heating / eddy ladder / hysteresis / heating + hysteresis on randomized p
 a finer, per-stroke mesh). Prints, per campaign, the largest relative error of Psi and F over 4 strokes x
 5 currents (0.25-2 A) for the literature curve (no identification, the baseline of this run) and for
 the identified curve, the stage the held-out prediction chose, the identification's wall time and how
-far the identified B strays from the truth in units of its own reported 1-sigma band; then
+far the identified B strays from the truth in units of its own reported 1-sigma band, and the largest 1-sigma
+of F on the prediction grid with whether the identification warned that the data do not pin F down; then
 the loop started from the identified maps (``tests/test_loop_identified.py``): effects found against the
 truth's, the pooled held-out error of the bare identified model and of the final one, and its wall time.
 
@@ -52,7 +53,7 @@ def main(n: int | None = None) -> list[dict]:
     rows = []
     literature = load_material()
     print(f"{'campaign':36s} {'literature Psi':>14s} {'F':>7s} {'identified Psi':>15s} {'F':>7s}  chosen"
-          f"{'':14s} wall [s]  B band: max |err|/sigma")
+          f"{'':14s} wall [s]  B band: max |err|/sigma  F band max [%]  F warned")
     for name, effects, seed in CAMPAIGNS[:n]:
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "campaign"
@@ -69,11 +70,13 @@ def main(n: int | None = None) -> list[dict]:
         row = {"campaign": f"{name} {effects or 'none'} #{seed}", "lit_psi": before["psi_max_rel"],
                "lit_F": before["F_max_rel"], "psi": after["psi_max_rel"], "F": after["F_max_rel"],
                "chosen": res.extra.get("chosen", ""), "wall_s": wall, "loop": loop, "band": band_coverage(res, name),
-               "want": sorted(EXPECTED[e] for e in effects.split(",") if e)}
+               "want": sorted(EXPECTED[e] for e in effects.split(",") if e),
+               "F_band": float(np.max(res.extra["prediction"]["F_sigma_rel"])),
+               "F_warned": any("pin the force" in w for w in res.extra["warnings"])}
         rows.append(row)
         print(f"{row['campaign']:36s} {row['lit_psi'] * 100:13.2f}% {row['lit_F'] * 100:6.2f}% "
               f"{row['psi'] * 100:14.2f}% {row['F'] * 100:6.2f}%  {row['chosen']:20s} {wall:7.1f}  "
-              f"{row['band']:9.2f}", flush=True)
+              f"{row['band']:9.2f}  {row['F_band'] * 100:14.2f}  {'yes' if row['F_warned'] else 'no'}", flush=True)
     worst_psi = max(r["psi"] for r in rows)
     worst_F = max(r["F"] for r in rows)
     walls = sorted(r["wall_s"] for r in rows)

@@ -109,3 +109,8 @@ def test_identification_at_least_halves_the_error_of_the_literature_curve(shared
     assert any("coil heats" in n for n in summary["notes"]) == ("heating" in effects), summary["notes"]
     # the held-out table covers every group of points, with finite errors
     assert summary["held_out"] and all(np.isfinite(r["rms_held_out_pct"]) for r in summary["held_out"])
+    # a curve that misses the goal is not handed over without a word: its prediction band says the campaign does
+    # not pin that quantity down (twice the 1-sigma above the goal somewhere on the working range)
+    for miss, what in ((err["psi_max_rel"] > PSI_TOL, "pin the flux linkage"), (err["F_max_rel"] > F_TOL,
+                                                                                 "pin the force")):
+        assert not miss or any(what in w for w in summary["warnings"]), (table, summary["warnings"])

@@ -10,7 +10,7 @@ from solenoid_fmu.errors import SolenoidError
 from solenoid_fmu.field import load_geometry, load_material
 from solenoid_fmu.identification.parametrization import scaled_curve
 from solenoid_fmu.identification.point_model import PointModel
-from solenoid_fmu.identification.point_pool import MAX_WORKERS, default_workers, split_by_stroke
+from solenoid_fmu.identification.point_pool import MAX_WORKERS, WORKERS_ENV, default_workers, split_by_stroke
 
 #: Points at three strokes (flux and force, one force point at the stroke's end in the test below).
 POINTS = [("psi", 0.5, 1.0e-3), ("force", 0.8, 1.0e-3), ("psi", 1.5, 2.0e-3), ("force", 1.6, 2.0e-3),
@@ -67,3 +67,14 @@ def test_a_worker_error_is_raised_in_the_parent():
             pm.values(np.array([0.1, 0.0]))
     finally:
         pm.close()
+
+
+def test_the_default_follows_the_environment_and_refuses_nonsense(monkeypatch):
+    monkeypatch.setenv(WORKERS_ENV, "3")
+    assert default_workers() == 3
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv(WORKERS_ENV, bad)
+        with pytest.raises(SolenoidError, match=f"{WORKERS_ENV}='{bad}': must be a whole number >= 1"):
+            default_workers()
+    monkeypatch.delenv(WORKERS_ENV)
+    assert 1 <= default_workers() <= MAX_WORKERS

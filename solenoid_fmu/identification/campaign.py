@@ -18,6 +18,8 @@ from .io import write_curve_files
 from .joint import identify_joint
 from .joint_result import result_from_joint
 from .measured import absolute_flux, group_flux, groups_of
+from .point_pool import default_workers
+from .prediction import prediction_band, prediction_warnings
 from .report import write_report
 from .result import IdentificationResult
 
@@ -139,6 +141,10 @@ def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size
         "notes": notes + fnotes + [f"left out {why}" for why in unusable],
         "G_eddy_loops_S": details["G_eddy_S"], "resistance": details["resistance"],
         "resistance_tracks_used": details["heated"]})
+    band = prediction_band(fit, geom, mesh_size, res.extra["B_uncertainty"]["noise_scale"],
+                           workers=default_workers() if kwargs.get("workers") is None else kwargs["workers"])
+    res.extra["prediction"] = {k: np.asarray(v).tolist() for k, v in band.items()}
+    res.extra["warnings"] += prediction_warnings(band)
     for w in res.extra["warnings"]:
         print(f"identify: warning: {w}", file=sys.stderr)
     return res, cc, ()

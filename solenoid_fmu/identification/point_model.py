@@ -63,8 +63,9 @@ class PointModel:
         self.x_m = np.array([float(p[2]) for p in points])
         if not set(self.kind) <= {"psi", "force"}:
             raise ValueError(f"point kinds must be 'psi' or 'force', got {sorted(set(self.kind))}")
-        # evaluation order: by stroke, then current (warm starts along each stroke)
-        self.order = np.lexsort((self.i_A, self.x_m))
+        # evaluation order: by stroke, then current (warm starts along each stroke); at the same (i, x) the force
+        # point first: a flux point there takes its solution (the force solve has the flux too)
+        self.order = np.lexsort((self.kind == "psi", self.i_A, self.x_m))
         # every gap an evaluation and a Jacobian visit keeps its quadrature data (each force point adds its
         # +-dx: with the default 16 the demo campaign rebuilt them 420 times, 9 of its 125 s)
         lo_x, hi_x = geometry.stroke.min_m, geometry.stroke.max_m
@@ -129,9 +130,13 @@ class PointModel:
         s.material = self.curve_fn(theta)
         out = np.empty(self.n)
         steps = 0
-        prev_x, u_prev, i_prev = None, None, None
+        prev_x, u_prev, i_prev, sol = None, None, None, None
         for k in self.order:
             x, i = self.x_m[k], self.i_A[k]
+            if x == prev_x and i == i_prev and self.kind[k] == "psi":  # the force point's solution has it
+                out[k] = sol.psi_Wb
+                self.u[k] = sol.u
+                continue
             if x != prev_x:
                 u_prev, i_prev = None, None
             start = self.u[k] if self.u[k] is not None else u_prev

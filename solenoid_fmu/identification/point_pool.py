@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..errors import SolenoidError
 
-__all__ = ["MAX_WORKERS", "default_workers", "split_by_stroke", "WorkerPool"]
+__all__ = ["MAX_WORKERS", "WORKERS_ENV", "default_workers", "split_by_stroke", "WorkerPool"]
 
 #: What a worker process runs (``python -c``; ``-m`` would import the module twice).
 _START = "from solenoid_fmu.identification.point_worker import main; main()"
@@ -20,9 +20,23 @@ _START = "from solenoid_fmu.identification.point_worker import main; main()"
 MAX_WORKERS = 4
 
 
+#: Environment variable with the default number of workers (a whole number >= 1), for a machine whose cores are
+#: already busy otherwise (``make test``: pytest-xdist runs one test per core, nested workers only add start-up).
+WORKERS_ENV = "SOLENOID_FMU_WORKERS"
+
+
 def default_workers() -> int:
-    """Workers an identification uses when not told: the cores this process may run on, at most
-    :data:`MAX_WORKERS`."""
+    """Workers an identification uses when not told: :data:`WORKERS_ENV` if set, else the cores this process may
+    run on, at most :data:`MAX_WORKERS`."""
+    text = os.environ.get(WORKERS_ENV, "").strip()
+    if text:
+        try:
+            n = int(text)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise SolenoidError(f"environment variable {WORKERS_ENV}={text!r}: must be a whole number >= 1")
+        return n
     try:
         n = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux

@@ -14,6 +14,7 @@ __all__ = [
     "IDENTIFIED_SHRINK",
     "IDENTIFIED_B_STD",
     "B_uncertainty",
+    "posterior_covariance",
     "identified_range",
 ]
 
@@ -40,13 +41,7 @@ def B_uncertainty(model, theta, J_rel, sigma_rel, H) -> tuple[np.ndarray, np.nda
     prior_rel, posterior_rel : ndarray, shape (len(H),)
     """
     P = len(theta)
-    m = len(model.H_nodes)
-    A = np.zeros((m + 1, P))  # ln chi nodes and the tail slope as linear functions of theta
-    A[:m, 0] = 1.0
-    for j in range(1, m):
-        A[j, 1 : j + 1] = 1.0
-    A[m, m] = 1.0
-    Lam = A.T @ A / PRIOR_LN_CHI_STD**2
+    Lam = _prior_precision(model, P)
     B0 = np.interp(H, *model.table(theta))
     G = np.empty((len(H), P))
     for p in range(P):
@@ -54,9 +49,27 @@ def B_uncertainty(model, theta, J_rel, sigma_rel, H) -> tuple[np.ndarray, np.nda
         e[p] = 1e-4
         G[:, p] = (np.interp(H, *model.table(theta + e)) - np.interp(H, *model.table(theta - e))) / 2e-4
     prior = np.linalg.inv(Lam)
-    post = np.linalg.inv(J_rel.T @ J_rel / sigma_rel**2 + Lam)
+    post = posterior_covariance(model, J_rel, sigma_rel)
     sd = [np.sqrt(np.maximum(np.einsum("hp,pq,hq->h", G, c, G), 0.0)) / B0 for c in (prior, post)]
     return sd[0], sd[1]
+
+
+def _prior_precision(model, P: int) -> np.ndarray:
+    """The prior's precision in the parameters theta: ln chi at every node and the tail slope, independent,
+    std :data:`PRIOR_LN_CHI_STD` (theta holds ln chi at the first node and the increments after it)."""
+    m = len(model.H_nodes)
+    A = np.zeros((m + 1, P))  # ln chi nodes and the tail slope as linear functions of theta
+    A[:m, 0] = 1.0
+    for j in range(1, m):
+        A[j, 1 : j + 1] = 1.0
+    A[m, m] = 1.0
+    return A.T @ A / PRIOR_LN_CHI_STD**2
+
+
+def posterior_covariance(model, J_rel, sigma_rel) -> np.ndarray:
+    """Covariance of the parameters theta after the data: (J^T J / sigma^2 + Lambda)^-1 (:func:`B_uncertainty`)."""
+    J_rel = np.asarray(J_rel, dtype=float)
+    return np.linalg.inv(J_rel.T @ J_rel / sigma_rel**2 + _prior_precision(model, J_rel.shape[1]))
 
 
 def identified_range(model, theta, J_rel, rms_rel, H_max) -> tuple[tuple[float, float], np.ndarray, np.ndarray]:

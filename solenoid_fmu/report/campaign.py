@@ -86,6 +86,12 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
                   "stroke's flux, a band of currents, a force-stroke recording) is predicted by the fit without it; "
                   "errors in % of the measured values (flux: of the stroke's peak)."),
          "table": held_out_table(s)},
+        {"heading": "B(H) identification: what the curve predicts on the working range, with its 1-sigma uncertainty",
+         "text": ("Psi and F of the identified curve (FEM) on a grid of the working strokes and currents; the "
+                  "uncertainty is what the campaign's points leave of it (linearized, every node of the curve free, "
+                  "their sigmas scaled by the held-out error). Twice the sigma above 1 % (Psi) or 2 % (F) is warned "
+                  "about above: the campaign does not pin the curve down there."),
+         "table": prediction_table(s)},
         {"heading": "Eddy currents",
          "text": "No eddy recording." if summary["eddy"] is None else
          f"G_eddy = {summary['eddy']['G_model_S'] * 1e3:.4g} mS. {summary['eddy'].get('message', '')}"},
@@ -124,6 +130,19 @@ def summary_table(summary) -> dict:
         a = sum(v[1] for v in vals) / len(vals)
         rows.append([sig, len(vals), b, a, a / b if b else None])
     return {"columns": ["signal", "recordings", "mean NRMSE (full scale) before", "after", "ratio"], "rows": rows}
+
+
+def prediction_table(ident_summary) -> dict:
+    """The identified curve's Psi and F with their relative 1-sigma on the prediction grid
+    (``identification.json`` ``prediction``); empty without one."""
+    p = ident_summary.get("prediction")
+    rows = []
+    if p:
+        for a, i in enumerate(p["i_A"]):
+            for b, x in enumerate(p["x_mm"]):
+                rows.append([i, x, p["psi_Wb"][a][b] * 1e3, p["psi_sigma_rel"][a][b] * 100, p["F_N"][a][b],
+                             p["F_sigma_rel"][a][b] * 100])
+    return {"columns": ["i [A]", "x [mm]", "Psi [mWb]", "1 sigma [%]", "F [N]", "1 sigma [%]"], "rows": rows}
 
 
 def held_out_table(ident_summary) -> dict:
