@@ -81,7 +81,7 @@ PRESETS = {
     "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6,
               "identify_max_nfev": 16},
     "smoke": {"identify_mesh_size": 4.0, "maps_mesh_size": 3.0, "n_x": 4, "n_i": 6, "n_currents": 4,
-              "identify_max_nfev": 2, "figures": False, "native": False},
+              "identify_max_nfev": 2, "figures": False, "native": False, "prediction": False},
 }
 
 
@@ -282,7 +282,8 @@ def _identify(run: _Run, geom, ident_recs, suffix: str):
     ident = identify_from_recordings(ident_recs, geometry=geom, mesh_size=cfg["identify_mesh_size"],
                                      start_material=run.start_material, out_csv=run.out / "material" / "material.csv",
                                      report_dir=run.figures_dir("identify"), progress=run.progress is not None,
-                                     n_currents=cfg["n_currents"], workers=run.workers, **max_nfev)
+                                     n_currents=cfg["n_currents"], workers=run.workers,
+                                     prediction=cfg.get("prediction", True), **max_nfev)
     sweeps = ident.summary().get("equivalent_sweeps", float("nan"))
     run.say(f"   flux error (RMS of peak) {ident.rms_before * 100:.2f} % -> {ident.rms_after * 100:.2f} %, "
             f"{sweeps:.0f} equivalent sweeps, {ident.wall_time_s:.0f} s")

@@ -28,7 +28,7 @@ __all__ = ["identify_from_recordings"]
 
 def identify_from_recordings(recordings, *, geometry=None, start_material=None, mesh_size=None, out_csv=None,
                              report_dir=None, progress=True, method: str = "gn", n_currents: int = DEFAULT_N_CURRENTS,
-                             workers: int | None = None, **kwargs) -> IdentificationResult:
+                             workers: int | None = None, prediction: bool = True, **kwargs) -> IdentificationResult:
     """Identify B(H) from test-rig recordings (the pipeline's entry point).
 
     Parameters
@@ -56,6 +56,9 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
     workers : int, optional
         Processes that solve the joint fit's FEM points (method ``gn``), whole strokes each; default: the cores
         this process may use, at most 4 (:func:`~.point_pool.default_workers`); the curve does not depend on it.
+    prediction : bool
+        Method ``gn``: Psi and F on the working range with the 1-sigma the campaign leaves (summary ``prediction``,
+        warned where twice it exceeds the goal; :mod:`.prediction`, ~3 s at the default mesh). False skips it.
     **kwargs
         Passed to :func:`identify_bh` (``auglag``) or :func:`~.joint.identify_joint` (``gn``).
 
@@ -92,7 +95,7 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
             res, cc, others_used = _by_auglag(main, others, geom, start, mesh_size, cb, n_currents, kwargs)
         else:
             res, cc, others_used = _by_joint_fit(recs, flux, unusable, geom, start, mesh_size, cb, n_currents,
-                                                 {**kwargs, "workers": workers})
+                                                 {**kwargs, "workers": workers}, prediction)
     finally:
         if bar is not None:
             bar.close()
@@ -119,7 +122,7 @@ def _by_auglag(main: list, others, geom, start, mesh_size: float, cb, n_currents
 
 
 def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size: float, cb, n_currents: int,
-                  kwargs: dict):
+                  kwargs: dict, prediction: bool = True):
     """The joint fit of :func:`identify_from_recordings` (method ``gn``): flux points at every stroke, force and
     hold points. The result, the commutation curve of the stroke with the most flux recordings, and ``()``."""
     force_recs = [r for r in recs if r.kind == "force_stroke"]
@@ -141,10 +144,11 @@ def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size
         "notes": notes + fnotes + [f"left out {why}" for why in unusable],
         "G_eddy_loops_S": details["G_eddy_S"], "resistance": details["resistance"],
         "resistance_tracks_used": details["heated"]})
-    band = prediction_band(fit, geom, mesh_size, res.extra["B_uncertainty"]["noise_scale"],
-                           workers=default_workers() if kwargs.get("workers") is None else kwargs["workers"])
-    res.extra["prediction"] = {k: np.asarray(v).tolist() for k, v in band.items()}
-    res.extra["warnings"] += prediction_warnings(band)
+    if prediction:
+        band = prediction_band(fit, geom, mesh_size, res.extra["B_uncertainty"]["noise_scale"],
+                               workers=default_workers() if kwargs.get("workers") is None else kwargs["workers"])
+        res.extra["prediction"] = {k: np.asarray(v).tolist() for k, v in band.items()}
+        res.extra["warnings"] += prediction_warnings(band)
     for w in res.extra["warnings"]:
         print(f"identify: warning: {w}", file=sys.stderr)
     return res, cc, ()
