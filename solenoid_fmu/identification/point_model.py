@@ -53,6 +53,10 @@ class PointModel:
     mesh_size : float
     start_curve : BHCurve
         Any curve, to build the solver.
+    workers : int
+        More than 1: the points are solved in that many worker processes, whole strokes each
+        (:mod:`.point_pool`, :mod:`.point_worker`; fewer where there are fewer strokes), with the same
+        numbers as in this process. :meth:`close` stops them.
     """
 
     def __init__(self, geometry, points, curve_fn, mesh_size: float, start_curve, workers: int = 1):
