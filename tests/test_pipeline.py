@@ -4,6 +4,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from solenoid_fmu.pipeline import PipelineError, find_recordings
@@ -36,6 +37,11 @@ def test_summary_json_has_the_documented_fields_and_files(demo):
     assert not any("truth" in Path(p).parts for p in on_disk["recordings"])  # never reads the truth
     html = (out / "report.html").read_text()
     assert html.count("data:image/png;base64") >= 10 and "<img src=\"http" not in html
+    # what the identified curve predicts on the working range, with its 1-sigma (5 currents x 4 strokes)
+    pred = on_disk["identification"]["prediction"]
+    assert np.shape(pred["F_sigma_rel"]) == (5, 4) and np.shape(pred["psi_Wb"]) == (5, 4)
+    assert np.all(np.diff(pred["psi_Wb"], axis=0) > 0) and np.all(np.asarray(pred["F_sigma_rel"]) > 0)
+    assert "what the curve predicts on the working range" in html
 
 
 def test_pipeline_finds_the_campaigns_true_effects_and_cuts_the_errors(demo):
