@@ -144,6 +144,7 @@ def test_every_argument_is_checked_before_any_work(work, tmp_path):
     out = tmp_path / "out"
     cases = [
         ["pipeline", work["base"], "-o", out, "--workers", "0"],
+        ["identify", work["rec"], "-o", out / "m.csv", "--workers", "0"],
         ["rig", "--maps", work["maps"], "--seed", "-1", "-o", out],
         ["rig", "--maps", work["maps"], "--mesh-size", "0", "-o", out],
         ["maps", "-o", out / "m", "--mesh-size", "nan"],
