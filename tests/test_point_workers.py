@@ -78,3 +78,29 @@ def test_the_default_follows_the_environment_and_refuses_nonsense(monkeypatch):
             default_workers()
     monkeypatch.delenv(WORKERS_ENV)
     assert 1 <= default_workers() <= MAX_WORKERS
+
+
+def test_messages_round_trip_without_pickle():
+    """The workers' messages (JSON and .npy, no pickle): the curve rebuilt bit for bit, the geometry equal, dict
+    keys and arrays kept, an exception raised as its own class; a truncated message is an EOFError."""
+    import io
+
+    from solenoid_fmu.errors import SolverError
+    from solenoid_fmu.identification.point_pool import receive, send
+
+    geom, lit = load_geometry(), load_material()
+    buf = io.BytesIO()
+    send(buf, ("init", geom, POINTS, 3.0, lit))
+    send(buf, ("ok", ({4: (np.arange(3.0), np.array([np.nan]))}, [(2, 2e-6, (np.ones(2), np.ones(2)))]), (1, 2, 3)))
+    send(buf, ("err", SolverError("Newton did not converge at 1.5 A")))
+    buf.seek(0)
+    _, g, pts, mesh, curve = receive(buf)
+    assert g == geom and pts == tuple(POINTS) and mesh == 3.0
+    for name in ("B_T", "nu_d", "H_A_per_m", "_w"):
+        np.testing.assert_array_equal(getattr(curve, name), getattr(lit, name))
+    _, (flux, force), counters = receive(buf)
+    assert list(flux) == [4] and np.isnan(flux[4][1][0]) and force[0][:2] == (2, 2e-6) and counters == (1, 2, 3)
+    err = receive(buf)[1]
+    assert type(err) is SolverError and "1.5 A" in str(err)
+    with pytest.raises(EOFError):
+        receive(io.BytesIO(buf.getvalue()[:40]))

@@ -63,4 +63,4 @@ def test_the_band_narrows_where_the_campaign_has_data_and_warns_where_it_has_non
     # more noise, wider band: the scale on the sigmas (the held-out RMS) enters as it should
     noisy = prediction_band(_fit((1.0, 1.5, 2.0), sigma_rel=8e-3), geom, MESH, 1.0, GRID_I, GRID_X)
     assert np.all(noisy["F_sigma_rel"][-1] > 1.5 * F_hi[-1])
-    np.testing.assert_allclose(noisy["F_N"], high["F_N"], rtol=1e-9)
+    np.testing.assert_allclose(noisy["F_N"], high["F_N"], rtol=1e-6)  # the values do not depend on the sigmas

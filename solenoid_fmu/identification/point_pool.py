@@ -1,18 +1,33 @@
 """The parent's side of the identification's worker processes (:mod:`.point_worker`, whose docstring has the
-protocol): how many, which strokes each takes, and the pool that talks to them."""
+protocol): how many, which strokes each takes, the pool that talks to them, and the messages' encoding.
+
+A message is no pickle: a length-prefixed JSON document, then the arrays it refers to, each in NumPy's ``.npy``
+format read with ``allow_pickle=False`` (:func:`send`, :func:`receive`). JSON carries numbers, strings, lists,
+dicts with any keys (``{"__dict__": [[k, v], ...]}``), and three kinds of object by their fields: a B(H) curve
+(its knots: rebuilt exactly), a geometry (its dataclasses) and an exception (class name and message; a class
+of :mod:`solenoid_fmu.errors` or a builtin one is raised as such, any other as RuntimeError)."""
 
 from __future__ import annotations
 
+import builtins
+import dataclasses
+import io
+import json
 import os
-import pickle
+import struct
 import subprocess
 import sys
 import weakref
 from pathlib import Path
 
-from ..errors import SolenoidError
+import numpy as np
 
-__all__ = ["MAX_WORKERS", "WORKERS_ENV", "default_workers", "split_by_stroke", "WorkerPool"]
+from .. import errors
+from ..errors import SolenoidError
+from ..field.geometry import Coil, Domain, Geometry, Region, Stroke
+from ..field.material import BHCurve
+
+__all__ = ["MAX_WORKERS", "WORKERS_ENV", "default_workers", "split_by_stroke", "WorkerPool", "send", "receive"]
 
 #: What a worker process runs (``python -c``; ``-m`` would import the module twice).
 _START = "from solenoid_fmu.identification.point_worker import main; main()"
@@ -82,8 +97,7 @@ class WorkerPool:
         for g in self.groups:
             p = subprocess.Popen([sys.executable, "-c", _START], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
             self.procs.append(p)
-            pickle.dump(("init", geometry, [points[k] for k in g], mesh_size, start_curve), p.stdin)
-            p.stdin.flush()
+            send(p.stdin, ("init", geometry, [points[k] for k in g], mesh_size, start_curve))
         self.ask_all(None)  # the workers' meshes and solvers are ready
 
     def ask_all(self, msg) -> list:
@@ -92,15 +106,14 @@ class WorkerPool:
         if msg is not None:
             for p in self.procs:
                 try:
-                    pickle.dump(msg, p.stdin)
-                    p.stdin.flush()
+                    send(p.stdin, msg)
                 except (BrokenPipeError, OSError) as exc:
                     raise self._died(p) from exc
         answers = []
         for p in self.procs:
             try:
-                answers.append(pickle.load(p.stdout))
-            except (EOFError, pickle.UnpicklingError, OSError) as exc:
+                answers.append(receive(p.stdout))
+            except (EOFError, ValueError, OSError) as exc:
                 raise self._died(p) from exc
         for a in answers:
             if a[0] == "err":
@@ -121,7 +134,7 @@ class WorkerPool:
 def _shutdown(procs) -> None:
     for p in procs:
         try:
-            pickle.dump(("stop",), p.stdin)
+            send(p.stdin, ("stop",))
             p.stdin.close()
         except (BrokenPipeError, OSError, ValueError):
             pass
@@ -133,3 +146,94 @@ def _shutdown(procs) -> None:
             p.wait()
         if p.stdout is not None:
             p.stdout.close()
+
+
+# -- messages ------------------------------------------------------------------------------------------------
+_CURVE_FIELDS = ("B_T", "nu_d", "H_A_per_m", "table_H_A_per_m", "table_B_T")
+
+
+def _encode(obj, arrays: list):
+    if isinstance(obj, np.ndarray):
+        arrays.append(obj)
+        return {"__nd__": len(arrays) - 1}
+    if isinstance(obj, BHCurve):
+        return {"__curve__": {**{f: _encode(np.asarray(getattr(obj, f)), arrays) for f in _CURVE_FIELDS},
+                              "name": obj.name, "sha256": obj.sha256,
+                              "source_path": None if obj.source_path is None else str(obj.source_path)}}
+    if isinstance(obj, Geometry):
+        d = dataclasses.asdict(obj)
+        d["source_path"] = None if obj.source_path is None else str(obj.source_path)
+        return {"__geometry__": d}
+    if isinstance(obj, BaseException):
+        return {"__err__": [type(obj).__name__, str(obj)]}
+    if isinstance(obj, dict):
+        return {"__dict__": [[_encode(k, arrays), _encode(v, arrays)] for k, v in obj.items()]}
+    if isinstance(obj, list | tuple):
+        return [_encode(v, arrays) for v in obj]
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if obj is None or isinstance(obj, bool | int | float | str):
+        return obj
+    raise TypeError(f"point worker message: cannot encode {type(obj).__name__}")
+
+
+def _decode(obj, arrays: list):
+    if isinstance(obj, list):
+        return tuple(_decode(v, arrays) for v in obj)
+    if not isinstance(obj, dict):
+        return obj
+    if "__nd__" in obj:
+        return arrays[obj["__nd__"]]
+    if "__dict__" in obj:
+        return {_decode(k, arrays): _decode(v, arrays) for k, v in obj["__dict__"]}
+    if "__curve__" in obj:
+        c = obj["__curve__"]
+        return BHCurve(**{f: _decode(c[f], arrays) for f in _CURVE_FIELDS}, name=c["name"], sha256=c["sha256"],
+                       source_path=None if c["source_path"] is None else Path(c["source_path"]))
+    if "__geometry__" in obj:
+        g = obj["__geometry__"]
+        regions = tuple(Region(r["name"], r["material"], tuple(tuple(p) for p in r["polygon_m"]), r["moves"],
+                               r["ampere_turns"]) for r in g["regions"])
+        return Geometry(g["name"], regions, Coil(**g["coil"]), Stroke(**g["stroke"]),
+                        Domain(**{**g["domain"], "natural": tuple(g["domain"]["natural"])}),
+                        None if g["source_path"] is None else Path(g["source_path"]), g["sha256"], g["extra"])
+    if "__err__" in obj:
+        name, message = obj["__err__"]
+        cls = getattr(errors, name, None) or getattr(builtins, name, None)
+        if isinstance(cls, type) and issubclass(cls, Exception):
+            try:
+                return cls(message)
+            except Exception:
+                pass
+        return RuntimeError(f"{name}: {message}")
+    raise ValueError(f"point worker message: unknown object {sorted(obj)}")
+
+
+def send(stream, obj) -> None:
+    """Write ``obj`` (module docstring) to the binary ``stream`` and flush it."""
+    arrays: list = []
+    doc = json.dumps(_encode(obj, arrays), allow_nan=True).encode()
+    buf = io.BytesIO()
+    for a in arrays:
+        np.lib.format.write_array(buf, np.ascontiguousarray(a), allow_pickle=False)
+    blob = buf.getvalue()
+    stream.write(struct.pack("<QQQ", len(doc), len(arrays), len(blob)) + doc + blob)
+    stream.flush()
+
+
+def _read(stream, n: int) -> bytes:
+    data = stream.read(n)
+    if len(data) != n:
+        raise EOFError(f"point worker message: {len(data)} of {n} bytes")
+    return data
+
+
+def receive(stream):
+    """Read one object written by :func:`send` from the binary ``stream`` (EOFError at its end)."""
+    n_doc, n_arr, n_blob = struct.unpack("<QQQ", _read(stream, 24))
+    doc = json.loads(_read(stream, n_doc))
+    blob = io.BytesIO(_read(stream, n_blob))  # whole, in memory: NumPy would read a real file past the buffer
+    arrays = [np.lib.format.read_array(blob, allow_pickle=False) for _ in range(n_arr)]
+    return _decode(doc, arrays)

@@ -5,8 +5,8 @@ Each worker is a plain Python subprocess (``python -c`` calling :func:`main`), n
 ``multiprocessing`` child: those re-run a user's script on spawn (a script without a ``__main__`` guard would
 start identifying again) and fork a parent whose MKL/OpenMP threads may be running. The worker holds a
 :class:`PointModel` of its points (its own mesh, solver and warm starts) and answers the parent over its
-standard input and output (pickled tuples between two processes of this package, never written to a file or
-handed to a user; the worker's own ``print`` goes to standard error):
+standard input and output (:func:`~.point_pool.send` / :func:`~.point_pool.receive`: JSON and ``.npy`` arrays,
+no pickle; the worker's own ``print`` goes to standard error):
 
 * ``("values", curve)`` -> Psi [Wb] / F [N] at its points for that BHCurve (:meth:`PointModel._solve_all`);
 * ``("fields",)`` -> the Jacobian's per-point fields at the last curve (:meth:`PointModel.point_fields`);
@@ -20,12 +20,12 @@ result does not depend on how many workers there are. Each worker runs its linea
 from __future__ import annotations
 
 import os
-import pickle
 import sys
 
 from threadpoolctl import threadpool_limits
 
 from .point_model import PointModel
+from .point_pool import receive, send
 
 COUNTERS = ("solves", "newton_steps", "adjoint_solves")
 
@@ -37,14 +37,13 @@ def _counters(pm) -> tuple:
 def serve(inp, out) -> None:
     """Answer requests from ``inp`` on ``out`` (binary streams) until ``stop`` or the end of ``inp``."""
     holder = {}
-    _, geometry, points, mesh_size, start_curve = pickle.load(inp)
+    _, geometry, points, mesh_size, start_curve = receive(inp)
     with threadpool_limits(limits=1):
         pm = PointModel(geometry, points, lambda _theta: holder["curve"], mesh_size, start_curve)
-        pickle.dump(("ok", None, _counters(pm)), out)
-        out.flush()
+        send(out, ("ok", None, _counters(pm)))
         while True:
             try:
-                msg = pickle.load(inp)
+                msg = receive(inp)
             except EOFError:
                 return
             if msg[0] == "stop":
@@ -60,13 +59,8 @@ def serve(inp, out) -> None:
                     raise ValueError(f"point worker: unknown request {msg[0]!r}")
                 answer = ("ok", result, tuple(a - b for a, b in zip(_counters(pm), before, strict=True)))
             except Exception as exc:  # handed to the parent, which raises it
-                try:
-                    pickle.dumps(exc)
-                    answer = ("err", exc)
-                except Exception:
-                    answer = ("err", RuntimeError(f"{type(exc).__name__}: {exc}"))
-            pickle.dump(answer, out)
-            out.flush()
+                answer = ("err", exc)
+            send(out, answer)
 
 
 def main() -> None:
