@@ -22,10 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import errors
 from ..errors import SolenoidError
-from ..field.geometry import Coil, Domain, Geometry, Region, Stroke
-from ..field.material import BHCurve
+from ..field import BHCurve, Coil, Domain, Geometry, Region, Stroke
 
 __all__ = ["MAX_WORKERS", "WORKERS_ENV", "default_workers", "split_by_stroke", "WorkerPool", "send", "receive"]
 
@@ -179,6 +177,16 @@ def _encode(obj, arrays: list):
     raise TypeError(f"point worker message: cannot encode {type(obj).__name__}")
 
 
+def _solenoid_errors() -> dict:
+    """The package's exception classes by name (SolenoidError and every subclass)."""
+    out, todo = {}, [SolenoidError]
+    while todo:
+        cls = todo.pop()
+        out[cls.__name__] = cls
+        todo += cls.__subclasses__()
+    return out
+
+
 def _decode(obj, arrays: list):
     if isinstance(obj, list):
         return tuple(_decode(v, arrays) for v in obj)
@@ -201,7 +209,7 @@ def _decode(obj, arrays: list):
                         None if g["source_path"] is None else Path(g["source_path"]), g["sha256"], g["extra"])
     if "__err__" in obj:
         name, message = obj["__err__"]
-        cls = getattr(errors, name, None) or getattr(builtins, name, None)
+        cls = _solenoid_errors().get(name) or getattr(builtins, name, None)
         if isinstance(cls, type) and issubclass(cls, Exception):
             try:
                 return cls(message)
