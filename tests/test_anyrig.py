@@ -378,3 +378,33 @@ def test_force_stroke_curve_refuses_a_one_way_stroke_by_name(rig_campaign):
     one_way = _first_half(rec)
     with pytest.raises(RecordingError, match="one-way stroke"):
         force_stroke_curve(one_way)
+
+
+def test_one_way_stroke_is_used_with_the_friction_the_two_way_strokes_show(rig_campaign):
+    """A one-way force stroke of the friction campaign, shifted by the friction its campaign's other (two-way)
+    strokes show, matches the same stroke's two-way curve within a fraction of the friction; unshifted it is off
+    by the whole friction force. The identification keeps it and says so."""
+    from solenoid_fmu.identification import force_stroke_curve
+    from solenoid_fmu.identification.campaign_data import force_points
+    from solenoid_fmu.identification.measured import force_stroke_passes, friction_offset
+    from solenoid_fmu.rig import Friction
+
+    recs = [read_recording(p) for p in rig_campaign("friction") if "force_stroke" in p]
+    assert len(recs) >= 2
+    rec, others = recs[-1], recs[:-1]
+    d, sigma = friction_offset([force_stroke_passes(r) for r in others])
+    assert abs(d) == pytest.approx(Friction().force_N, rel=0.2) and sigma < 0.3 * abs(d)
+    both = force_stroke_curve(rec)
+    one = force_stroke_curve(_first_half(rec), friction=(d, sigma))
+    raw = force_stroke_curve(_first_half(rec), friction=(0.0, 0.0))
+    assert one["friction_sigma_N"] == sigma and both["friction_sigma_N"] == 0.0
+    mid = (one["x_m"] > one["x_m"].min() + 0.3e-3) & (one["x_m"] < one["x_m"].max() - 0.3e-3)  # off the reversals
+    ref = np.interp(one["x_m"][mid], both["x_m"], both["force_N"])
+    assert np.max(np.abs(one["force_N"][mid] - ref)) < 0.25 * abs(d)
+    assert np.median(np.abs(raw["force_N"][mid] - ref)) > 0.75 * abs(d)
+    pts, notes = force_points(others + [_first_half(rec)])
+    assert len({p.group for p in pts}) == len(others) + 1  # every stroke gives points, the one-way one too
+    assert any("one-way stroke" in n and "used with the friction" in n for n in notes), notes
+    # without a two-way stroke in the campaign the one-way stroke is left out by name, as before
+    pts, notes = force_points([_first_half(rec)])
+    assert pts == [] and any("one-way stroke" in n and "no stroke passed both ways" in n for n in notes), notes

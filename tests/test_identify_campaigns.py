@@ -26,7 +26,7 @@ PSI_TOL, F_TOL = 0.01, 0.02
 #: Campaigns where the identified curve misses the issue's goal today (the issue stays open): the
 #: largest error measured (Psi %, F %) at the commit that added this list, 2-core machine.
 SHORT_OF_GOAL = {
-    ("Permenorm3601K3", 17): (0.57, 2.06), ("random-3", 21): (0.76, 2.34),
+    ("Permenorm3601K3", 17): (0.57, 2.06), ("random-3", 21): (0.84, 2.50),
 }
 #: Campaigns where even the halving guard fails today (none since the branch mean of the first ascent and
 #: the highest peak's descent; random-4 failed it before).

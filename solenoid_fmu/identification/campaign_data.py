@@ -12,8 +12,9 @@ Every recording that carries the steel's magnetization is used, not one stroke:
   width counts as the mean's uncertainty.
 - **Force** (``force_stroke`` recordings at constant current): friction averaged out between the
   closing and the opening pass (:func:`~.measured.force_stroke_curve`), sampled at
-  :data:`FORCE_POSITIONS` positions. The force does not depend on the coil resistance, so it is
-  immune to coil heating.
+  :data:`FORCE_POSITIONS` positions. A one-way stroke (energized from one stop to the other) is shifted by
+  the friction the two-way strokes of the campaign show, with their scatter in its uncertainty. The force
+  does not depend on the coil resistance, so it is immune to coil heating.
 - **Holds** (``ramp`` and ``voltage_step`` recordings at a fixed stroke with voltage,
   :func:`hold_points`): where the current holds still, dPsi/dt = 0, so there is no eddy current and the
   current is the magnetizing one; Psi by eq. 4 up to the hold and, with a force column, the holding force
@@ -52,7 +53,7 @@ from ..measure import (
     hold_segments,
     peak_curves,
 )
-from .measured import force_stroke_curve, groups_of
+from .measured import force_stroke_curve, force_stroke_passes, friction_offset, groups_of
 
 __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
            "flux_points", "flux_sigma", "force_points", "hold_points", "HOLD_KINDS", "eddy_split", "resistance_choice",
@@ -323,11 +324,21 @@ def virgin_and_top(branches, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def force_points(recs) -> tuple[list[MeasuredPoint], list[str]]:
-    """Force points from ``force_stroke`` recordings (friction averaged; see the module docstring)."""
-    points, notes = [], []
+    """Force points from ``force_stroke`` recordings (friction averaged; see the module docstring).
+
+    A one-way stroke is shifted by the friction the campaign's two-way strokes show
+    (:func:`~.measured.friction_offset`), whose scatter is added to its points' 1-sigma; without a two-way
+    stroke it is left out with a note."""
+    points, notes, passes = [], [], []
     for rec in recs:
         try:
-            fc = force_stroke_curve(rec)
+            passes.append(force_stroke_passes(rec))
+        except RecordingError:
+            pass  # named below, where force_stroke_curve raises the same error
+    friction = friction_offset(passes)
+    for rec in recs:
+        try:
+            fc = force_stroke_curve(rec, friction=friction)
         except RecordingError as exc:
             notes.append(f"force: left out {exc}")
             continue
@@ -335,8 +346,11 @@ def force_points(recs) -> tuple[list[MeasuredPoint], list[str]]:
         xs = np.linspace(x.min(), x.max(), FORCE_POSITIONS + 2)[1:-1]
         Fs = np.interp(xs, x, F)
         Fmax = float(np.max(np.abs(F)))
-        sig = FORCE_FLOOR_REL * np.maximum(np.abs(Fs), 0.2 * Fmax)
+        sig = np.hypot(FORCE_FLOOR_REL * np.maximum(np.abs(Fs), 0.2 * Fmax), fc["friction_sigma_N"])
         name = rec.path.name if rec.path else rec.label()
+        if fc["friction_sigma_N"] > 0.0:
+            notes.append(f"force: one-way stroke {name} at {fc['i_A']:.3g} A used with the friction the two-way "
+                         f"strokes show, {friction[0]:+.3g} +- {friction[1]:.2g} N while the gap opens")
         for xv, fv, sv in zip(xs, Fs, sig, strict=True):
             points.append(MeasuredPoint("force", fc["i_A"], float(xv), float(fv), float(sv), f"force:{name}", name))
     return points, notes

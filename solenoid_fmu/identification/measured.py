@@ -8,7 +8,7 @@ import numpy as np
 from ..errors import RecordingError
 from ..measure import flux_linkage
 
-__all__ = ["absolute_flux", "group_flux", "groups_of", "force_stroke_curve"]
+__all__ = ["absolute_flux", "group_flux", "groups_of", "force_stroke_curve", "force_stroke_passes", "friction_offset"]
 
 
 def absolute_flux(recs) -> tuple[list, list[str]]:
@@ -43,13 +43,13 @@ def group_flux(recs) -> tuple[list, list[list]]:
     return ordered[0], ordered[1:]
 
 
-def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
-    """Measured force vs stroke of a ``force_stroke`` recording, friction averaged out.
+def force_stroke_passes(rec, bin_m: float = 0.1e-3) -> dict:
+    """Measured force of a ``force_stroke`` recording binned by position, per direction of motion.
 
-    Samples with the current on (above half its peak) and the armature moving are binned by
-    position (``bin_m`` [m]); in each bin the mean force of the closing and of the opening pass
-    are averaged (dry friction has opposite signs in the two passes). Returns ``x_m``, ``force_N``
-    (bins seen in both directions) and ``i_A`` (median current while on).
+    Samples with the current on (above half its peak) and the armature moving are binned by position
+    (``bin_m`` [m]). Returns ``x_m`` (bin centres [m]), ``up_N`` and ``down_N`` (mean force [N] of the
+    opening pass, x rising, and of the closing pass in each bin; NaN where that pass has fewer than two
+    samples) and ``i_A`` (median current while on [A]).
     """
     x = rec.positions_m()
     i = rec.current_A
@@ -65,15 +65,52 @@ def force_stroke_curve(rec, bin_m: float = 0.1e-3) -> dict:
         raise RecordingError(rec.label(), ["force_stroke recording: no moving samples with the current on"])
     edges = np.arange(x[sel].min(), x[sel].max() + bin_m, bin_m)
     idx = np.digitize(x, edges) - 1
-    xc, fc = [], []
-    for b in range(len(edges) - 1):
+    nb = len(edges) - 1
+    up, down = np.full(nb, np.nan), np.full(nb, np.nan)
+    for b in range(nb):
         inb = sel & (idx == b)
-        up, down = inb & (v > 0), inb & (v < 0)
-        if np.count_nonzero(up) >= 2 and np.count_nonzero(down) >= 2:
-            xc.append(0.5 * (edges[b] + edges[b + 1]))
-            fc.append(0.5 * (np.mean(F[up]) + np.mean(F[down])))
-    if len(xc) < 2:
-        raise RecordingError(rec.label(), ["force_stroke recording: fewer than two positions passed in both "
-                                            "directions (a one-way stroke): friction cannot be averaged out"])
-    return {"x_m": np.array(xc), "force_N": np.array(fc), "i_A": float(np.median(i[on]))}
+        for out, mask in ((up, inb & (v > 0)), (down, inb & (v < 0))):
+            if np.count_nonzero(mask) >= 2:
+                out[b] = np.mean(F[mask])
+    return {"x_m": 0.5 * (edges[:-1] + edges[1:]), "up_N": up, "down_N": down, "i_A": float(np.median(i[on]))}
 
+
+def friction_offset(passes: list[dict]) -> tuple[float, float] | None:
+    """The campaign's friction in the force strokes from the bins passed both ways: (d, sigma) [N].
+
+    ``d`` is the mean over those bins, of every stroke in ``passes`` (:func:`force_stroke_passes`), of half the
+    opening pass's force minus the closing pass's: dry friction adds ``+d`` to the measured force while the
+    gap opens and ``-d`` while it closes, whatever the current. ``sigma`` is the bins' scatter of that half
+    difference (position-dependent friction and noise). None with fewer than three such bins.
+    """
+    half = np.concatenate([0.5 * (p["up_N"] - p["down_N"]) for p in passes]) if passes else np.array([])
+    half = half[np.isfinite(half)]
+    if half.size < 3:
+        return None
+    return float(np.mean(half)), float(np.std(half, ddof=1))
+
+
+def force_stroke_curve(rec, bin_m: float = 0.1e-3, friction: tuple[float, float] | None = None) -> dict:
+    """Measured force vs stroke of a ``force_stroke`` recording, friction taken out.
+
+    In each position bin passed in both directions the mean force of the closing and of the opening
+    pass are averaged (dry friction has opposite signs in the two passes; :func:`force_stroke_passes`).
+    A one-way stroke (fewer than two bins passed both ways) is used only with the campaign's
+    ``friction`` (d, sigma) [N] (:func:`friction_offset`): its pass is shifted by ``-d`` (opening) or
+    ``+d`` (closing). Returns ``x_m``, ``force_N``, ``i_A`` (median current while on) and
+    ``friction_sigma_N`` (``sigma`` for a one-way stroke, 0 otherwise).
+    """
+    p = force_stroke_passes(rec, bin_m)
+    both = np.isfinite(p["up_N"]) & np.isfinite(p["down_N"])
+    if np.count_nonzero(both) >= 2:
+        return {"x_m": p["x_m"][both], "force_N": 0.5 * (p["up_N"] + p["down_N"])[both], "i_A": p["i_A"],
+                "friction_sigma_N": 0.0}
+    passes = [(np.isfinite(p["up_N"]), p["up_N"], -1.0), (np.isfinite(p["down_N"]), p["down_N"], 1.0)]
+    seen, F, sign = max(passes, key=lambda q: np.count_nonzero(q[0]))
+    if friction is None or np.count_nonzero(seen) < 2:
+        why = ("and the campaign has no stroke passed both ways to measure the friction" if friction is None
+               else "and fewer than two positions in one direction either")
+        raise RecordingError(rec.label(), ["force_stroke recording: fewer than two positions passed in both "
+                                            f"directions (a one-way stroke), {why}: friction cannot be taken out"])
+    d, sigma = friction
+    return {"x_m": p["x_m"][seen], "force_N": F[seen] + sign * d, "i_A": p["i_A"], "friction_sigma_N": sigma}
