@@ -121,6 +121,8 @@ class Solver:
         names = mm.region_names
         steel_regions = [k for k, r in enumerate(geometry.regions) if r.material == "steel"]
         self.steel = np.isin(mm.region, steel_regions)
+        self.steel_idx = np.flatnonzero(self.steel)
+        self.dofs_s = np.ascontiguousarray(self.dofs[:, self.steel_idx])  # (6, steel elements)
         coil_k = names.index(geometry.coil.region)
         self.coil_elements = np.flatnonzero(mm.region == coil_k)
         self.coil_area = geometry.region(geometry.coil.region).area_m2
@@ -180,6 +182,24 @@ class Solver:
         self._dir_diag = np.flatnonzero(isdir[r] & (r == c))
         self.dirichlet_mask = isdir
         self.linear_solver = SPDSolver(self._indptr, self._indices, n, linear_backend)
+        self._scatter_s = self.scatter_of(self.steel_idx)
+
+    def scatter_of(self, elements: np.ndarray) -> np.ndarray:
+        """Places in the CSR data of the (6, 6) element-matrix entries of ``elements``, raveled (k, l, element)."""
+        return self._scatter.reshape(6, 6, self.nel)[:, :, elements].ravel()
+
+    @property
+    def nnz(self) -> int:
+        """Stored entries of the stiffness pattern."""
+        return self._nnz
+
+    @property
+    def pattern_indices(self) -> np.ndarray:
+        return self._indices
+
+    @property
+    def pattern_indptr(self) -> np.ndarray:
+        return self._indptr
 
     def assemble_source(self, cfg: GapConfig, density: np.ndarray) -> np.ndarray:
         """Load vector of a current density per element ``density`` [A/m^2] at the gap of ``cfg``."""
@@ -220,8 +240,14 @@ class Solver:
         ue = u[self.dofs]  # (6, nel)
         return np.einsum("ke,kdeq->deq", ue, cfg.G)  # (2, nel, nq)
 
+    def grad_steel(self, cfg: GapConfig, u: np.ndarray) -> np.ndarray:
+        """:meth:`grad` at the steel elements only (``self.steel_idx``), shape (2, steel elements, points)."""
+        return np.einsum("ke,kdeq->deq", u[self.dofs_s], cfg.G_s)
+
     def _energy(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray, with_scale: bool = False):
-        """The energy functional / 2 pi; with ``with_scale``, also sum |r w dA| + |f| . |u| (its rounding scale)."""
+        """The energy functional / 2 pi; with ``with_scale``, also sum |r w dA| + |f| . |u| (its rounding scale).
+        Element by element everywhere (not u . A_lin u / 2 for the linear elements: that product sums terms that
+        cancel, and its rounding would blind the line search near the solution)."""
         g = self.grad(cfg, u)
         b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r**2
         w = cfg.dx * cfg.r * self._energy_density(b2)
@@ -420,20 +446,21 @@ class Solver:
     def _newton_system(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray):
         """:meth:`tangent` and, per dof, |K_s| |u| + |f|: the residual's rounding floor / eps (K_s the secant
         stiffness, whose product with u the residual's element sums add up)."""
-        g = self.grad(cfg, u)  # (2, nel, nq)
-        r2 = cfg.r**2
-        b2 = (g[0] ** 2 + g[1] ** 2) / r2
-        nu, dnu = self._nu(b2)
-        G = cfg.G  # (6, 2, nel, nq)
-        gG = np.einsum("deq,kdeq->keq", g, G)  # (6, nel, nq): g . grad phi_k
-        a = cfg.w_over_r * nu
-        c = cfg.w_over_r * 2 * dnu / r2
-        K_s, K = symmetric_matrices(cfg.GGu, a, gG, c)  # (6, 6, nel) secant (res_loc = K_s u_e) and tangent
+        # the steel's element matrices at u; the other elements' constant part comes assembled (GapConfig)
+        g = self.grad_steel(cfg, u)  # (2, steel elements, nq)
+        r2 = cfg.r2_s
+        nu, dnu = self.material.nu_of_b2((g[0] ** 2 + g[1] ** 2) / r2)
+        gG = np.einsum("deq,kdeq->keq", g, cfg.G_s)  # (6, nel_s, nq): g . grad phi_k
+        a = cfg.w_over_r_s * nu
+        c = cfg.w_over_r_s * 2 * dnu / r2
+        K_s, K = symmetric_matrices(cfg.GGu_s, a, gG, c)  # (6, 6, nel_s) secant (res_loc = K_s u_e) and tangent
         res_loc = np.einsum("keq,eq->ke", gG, a)
-        res = np.bincount(self.dofs.ravel(), weights=res_loc.ravel(), minlength=self.ndofs) - f
-        floor_loc = np.einsum("kle,le->ke", np.abs(K_s), np.abs(u[self.dofs]))
-        floor_rows = np.bincount(self.dofs.ravel(), weights=floor_loc.ravel(), minlength=self.ndofs) + np.abs(f)
-        data = np.bincount(self._scatter, weights=K.ravel(), minlength=self._nnz)
+        dofs = self.dofs_s.ravel()
+        res = cfg.A_lin @ u + np.bincount(dofs, weights=res_loc.ravel(), minlength=self.ndofs) - f
+        floor_loc = np.einsum("kle,le->ke", np.abs(K_s), np.abs(u[self.dofs_s]))
+        floor_rows = (cfg.A_lin_abs @ np.abs(u) + np.bincount(dofs, weights=floor_loc.ravel(), minlength=self.ndofs)
+                      + np.abs(f))
+        data = cfg.A_lin.data + np.bincount(self._scatter_s, weights=K.ravel(), minlength=self._nnz)
         data[self._dir_mask] = 0.0
         data[self._dir_diag] = 1.0
         res[self.dirichlet_mask] = 0.0

@@ -7,8 +7,10 @@ Built and cached by :meth:`solenoid_fmu.field.fem.Solver.config`; ``solver`` bel
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
-from .elements import inv2, upper_pairs
+from .elements import UPPER_K, UPPER_L, inv2, upper_pairs
+from .material import NU_0
 
 __all__ = ["GapConfig", "scatter_vector"]
 
@@ -47,6 +49,37 @@ class GapConfig:
         self.psi_weights = scatter_vector(
             solver, self.phi[:, coil] * self.dx[coil][None], coil
         ) * (2 * np.pi * solver.geometry.coil.turns / solver.coil_area)
+        self._split_linear(solver)
+
+    def _split_linear(self, solver) -> None:
+        """Newton's data split by material. Steel elements (``solver.steel_idx``): their gradients, radii and
+        weights, contiguous (the tangent is assembled from them at every Newton step). The other elements
+        (air, coil, brass: nu = NU_0) have a constant stiffness, assembled once per gap: ``A_lin`` (CSR on the
+        solver's pattern, before the Dirichlet rows are set; its product with u is their residual) and
+        ``A_lin_abs`` (the same with |entries| of each element matrix: their part of the residual's rounding
+        floor, sum_e |K_e| |u_e|)."""
+        st = solver.steel_idx
+        self.G_s = np.ascontiguousarray(self.G[:, :, st])
+        self.GGu_s = np.ascontiguousarray(self.GGu[:, :, st])
+        self.r2_s = self.r[st] ** 2
+        self.w_over_r_s = self.w_over_r[st]
+        lin = np.flatnonzero(~solver.steel)
+        GGu_l = self.GGu[:, :, lin]
+        wl = self.w_over_r[lin]
+        K_u = GGu_l[0] * wl[:, 0]  # (21, nel_lin): summed one quadrature point at a time, as elements.py does
+        for q in range(1, wl.shape[1]):
+            K_u += GGu_l[q] * wl[:, q]
+        K_u *= NU_0
+        full = np.zeros((6, 6, lin.size))
+        full[UPPER_K, UPPER_L] = K_u
+        full[UPPER_L, UPPER_K] = K_u
+        scatter = solver.scatter_of(lin)
+        n = solver.ndofs
+        shape = (n, n)
+        data = np.bincount(scatter, weights=full.ravel(), minlength=solver.nnz)
+        data_abs = np.bincount(scatter, weights=np.abs(full).ravel(), minlength=solver.nnz)
+        self.A_lin = sp.csr_matrix((data, solver.pattern_indices, solver.pattern_indptr), shape=shape)
+        self.A_lin_abs = sp.csr_matrix((data_abs, solver.pattern_indices, solver.pattern_indptr), shape=shape)
 
     def velocity_L(self, vr: np.ndarray, vz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """L = dJ J^-1 (2, 2, nel) and dr/dx at quadrature points for vertex velocities (vr, vz).

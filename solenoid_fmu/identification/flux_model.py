@@ -110,8 +110,8 @@ class FluxModel:
                 K, _ = s.tangent(cfg, u, float(i) * cfg.f_coil + cfg.f_fixed)
                 lam = s.linear_solver.solve(K.data, K.indices, K.indptr, w)
                 self.adjoint_solves += 1
-                g = s.grad(cfg, u)[:, steel]
-                gl = s.grad(cfg, lam)[:, steel]
+                g = s.grad_steel(cfg, u)
+                gl = s.grad_steel(cfg, lam)
                 b2 = (g[0] ** 2 + g[1] ** 2) / r2
                 dot = (g[0] * gl[0] + g[1] * gl[1]) * wr
                 for p, (cp, cm) in enumerate(pairs):
@@ -125,7 +125,7 @@ class FluxModel:
         k = int(np.argmin(np.abs(self.i_A - i_A)))
         sol = s.solve(float(i_A), self.x_m, u0=self.u[k])
         cfg = s.config(self.x_m)
-        g = s.grad(cfg, sol.u)[:, s.steel]
+        g = s.grad_steel(cfg, sol.u)
         B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
         vol = 2 * np.pi * cfg.dx[s.steel] * cfg.r[s.steel]
         return s.material.H_of_B(B).ravel(), vol.ravel()

@@ -182,7 +182,7 @@ class PointModel:
     def _B_steel(self, cfg, u):
         """|B| [T] and volume [m^3] at the steel's quadrature points of solution u."""
         st = self.solver.steel
-        g = self.solver.grad(cfg, u)[:, st]
+        g = self.solver.grad_steel(cfg, u)
         return np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[st], 2 * np.pi * cfg.dx[st] * cfg.r[st]
 
     def point_fields(self) -> tuple[dict, list]:
@@ -204,8 +204,8 @@ class PointModel:
                 lam = s.linear_solver.solve(K.data, K.indices, K.indptr, w)
                 self.adjoint_solves += 1
                 st = s.steel
-                g = s.grad(cfg, u)[:, st]
-                gl = s.grad(cfg, lam)[:, st]
+                g = s.grad_steel(cfg, u)
+                gl = s.grad_steel(cfg, lam)
                 b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r[st] ** 2
                 flux[int(k)] = (np.sqrt(b2), (g[0] * gl[0] + g[1] * gl[1]) * cfg.w_over_r[st])
             # force points: the steel's field at the point's own solution (no solve) and one solve a step away
@@ -264,7 +264,7 @@ class PointModel:
         s.material = self.curve_fn(theta)
         sol = s.solve(float(i_A), float(x_m), forces=False)
         cfg = s.config(float(x_m))
-        g = s.grad(cfg, sol.u)[:, s.steel]
+        g = s.grad_steel(cfg, sol.u)
         B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
         vol = 2 * np.pi * cfg.dx[s.steel] * cfg.r[s.steel]
         return s.material.H_of_B(B).ravel(), vol.ravel()
