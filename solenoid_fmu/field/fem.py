@@ -175,7 +175,8 @@ class Solver:
         c = uniq % n
         self._indices = c.astype(np.int32)
         self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=n))]).astype(np.int32)
-        self._nnz = len(uniq)
+        self.nnz = self._nnz = len(uniq)  # the stiffness pattern (CSR), public for GapConfig's constant part
+        self.pattern_indices, self.pattern_indptr = self._indices, self._indptr
         isdir = np.zeros(n, dtype=bool)
         isdir[self.dirichlet] = True
         self._dir_mask = isdir[r] | isdir[c]
@@ -187,19 +188,6 @@ class Solver:
     def scatter_of(self, elements: np.ndarray) -> np.ndarray:
         """Places in the CSR data of the (6, 6) element-matrix entries of ``elements``, raveled (k, l, element)."""
         return self._scatter.reshape(6, 6, self.nel)[:, :, elements].ravel()
-
-    @property
-    def nnz(self) -> int:
-        """Stored entries of the stiffness pattern."""
-        return self._nnz
-
-    @property
-    def pattern_indices(self) -> np.ndarray:
-        return self._indices
-
-    @property
-    def pattern_indptr(self) -> np.ndarray:
-        return self._indptr
 
     def assemble_source(self, cfg: GapConfig, density: np.ndarray) -> np.ndarray:
         """Load vector of a current density per element ``density`` [A/m^2] at the gap of ``cfg``."""
@@ -246,8 +234,7 @@ class Solver:
 
     def _energy(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray, with_scale: bool = False):
         """The energy functional / 2 pi; with ``with_scale``, also sum |r w dA| + |f| . |u| (its rounding scale).
-        Element by element everywhere (not u . A_lin u / 2 for the linear elements: that product sums terms that
-        cancel, and its rounding would blind the line search near the solution)."""
+        Element by element (u . A_lin u / 2 sums terms that cancel: its rounding blinds the line search)."""
         g = self.grad(cfg, u)
         b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r**2
         w = cfg.dx * cfg.r * self._energy_density(b2)
