@@ -329,16 +329,16 @@ def force_points(recs) -> tuple[list[MeasuredPoint], list[str]]:
     A one-way stroke is shifted by the friction the campaign's two-way strokes show
     (:func:`~.measured.friction_offset`), whose scatter is added to its points' 1-sigma; without a two-way
     stroke it is left out with a note."""
-    points, notes, passes = [], [], []
-    for rec in recs:
+    points, notes, passes = [], [], {}
+    for k, rec in enumerate(recs):
         try:
-            passes.append(force_stroke_passes(rec))
+            passes[k] = force_stroke_passes(rec)
         except RecordingError:
             pass  # named below, where force_stroke_curve raises the same error
-    friction = friction_offset(passes)
-    for rec in recs:
+    friction = friction_offset(list(passes.values()))
+    for k, rec in enumerate(recs):
         try:
-            fc = force_stroke_curve(rec, friction=friction)
+            fc = force_stroke_curve(rec, friction=friction, passes=passes.get(k))
         except RecordingError as exc:
             notes.append(f"force: left out {exc}")
             continue

@@ -90,7 +90,8 @@ def friction_offset(passes: list[dict]) -> tuple[float, float] | None:
     return float(np.mean(half)), float(np.std(half, ddof=1))
 
 
-def force_stroke_curve(rec, bin_m: float = 0.1e-3, friction: tuple[float, float] | None = None) -> dict:
+def force_stroke_curve(rec, bin_m: float = 0.1e-3, friction: tuple[float, float] | None = None,
+                       passes: dict | None = None) -> dict:
     """Measured force vs stroke of a ``force_stroke`` recording, friction taken out.
 
     In each position bin passed in both directions the mean force of the closing and of the opening
@@ -98,9 +99,10 @@ def force_stroke_curve(rec, bin_m: float = 0.1e-3, friction: tuple[float, float]
     A one-way stroke (fewer than two bins passed both ways) is used only with the campaign's
     ``friction`` (d, sigma) [N] (:func:`friction_offset`): its pass is shifted by ``-d`` (opening) or
     ``+d`` (closing). Returns ``x_m``, ``force_N``, ``i_A`` (median current while on) and
-    ``friction_sigma_N`` (``sigma`` for a one-way stroke, 0 otherwise).
+    ``friction_sigma_N`` (``sigma`` for a one-way stroke, 0 otherwise). ``passes``: the recording's
+    :func:`force_stroke_passes` at ``bin_m``, where the caller has them already.
     """
-    p = force_stroke_passes(rec, bin_m)
+    p = force_stroke_passes(rec, bin_m) if passes is None else passes
     both = np.isfinite(p["up_N"]) & np.isfinite(p["down_N"])
     if np.count_nonzero(both) >= 2:
         return {"x_m": p["x_m"][both], "force_N": 0.5 * (p["up_N"] + p["down_N"])[both], "i_A": p["i_A"],
