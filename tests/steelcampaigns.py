@@ -83,3 +83,20 @@ def identified(shared: Path, name: str, effects: str, seed: int) -> tuple[Path, 
             (tmp / "identification.json").write_text(json.dumps(res.summary()))
             _publish(tmp, out)
     return folder, out / "material.csv"
+
+
+def once_per_session(shared: Path, key: str, compute) -> dict:
+    """``compute(work)`` (a JSON-able dict; ``work`` an empty folder it may write into) computed once per session
+    and kept as ``<shared>/<key>.json``: a second worker asking for it waits on the lock and reads the file."""
+    final = shared / f"{key}.json"
+    with _locked(shared / f"{key}.lock"):
+        if not final.is_file():
+            work = shared / f".tmp-{uuid.uuid4().hex}"
+            work.mkdir()
+            try:
+                text = json.dumps(compute(work))
+                (work / "out.json").write_text(text)
+                os.replace(work / "out.json", final)
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
+    return json.loads(final.read_text())

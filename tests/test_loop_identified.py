@@ -22,10 +22,11 @@ import json
 import math
 
 import pytest
-from steelcampaigns import CAMPAIGNS, campaign_id, identified
+from steelcampaigns import CAMPAIGNS, campaign_id, identified, once_per_session
+from truthsteels import truth_dir
 
 from solenoid_fmu.field import load_geometry, load_material
-from solenoid_fmu.loop import improve_tables, split_recordings
+from solenoid_fmu.loop import improve_tables, split_recordings, with_effects
 from solenoid_fmu.loop.improvement import _cases, _error
 from solenoid_fmu.loop.residuals import FluxCache, recording_name
 from solenoid_fmu.maps import save_maps
@@ -40,11 +41,11 @@ CUT = 1.0 / 3.0
 #: Campaigns where the loop misses today (issue 20 open): what it added and the pooled held-out
 #: NRMSE before -> after [%], measured at the commit that added this list.
 SHORT_OF_GOAL = {
-    ("9SMn28K", 12): "heating found (resistance tracks), error 0.40 % -> 0.37 % (0.92): from the TRUE curve the loop "
-                     "got 0.50 % -> 0.48 % on quick maps (0.47 % on maps at mesh 1.0): heating's share of the error "
-                     "is too small",
-    ("random-0", 18): "heating found, error 0.53 % -> 0.43 % (0.82); from the TRUE curve 0.82 % -> 0.75 % on quick "
-                      "maps (as 9SMn28K)",
+    ("9SMn28K", 12): "heating found, error 0.40 % -> 0.37 % (0.92); with the rig's own C_th, R_th 0.37 %; the exact "
+                     "model (truth maps + the rig's heating) gets only 0.21 % -> 0.15 % (0.69): the sensors leave "
+                     "as much as the heating (test_heating_alone_...)",
+    ("random-0", 18): "heating found, error 0.53 % -> 0.43 % (0.82); with the rig's own C_th, R_th 0.44 %; the exact "
+                      "model gets only 0.43 % -> 0.27 % (0.64) (as 9SMn28K)",
 }
 
 
@@ -55,10 +56,22 @@ def _param(name, effects, seed):
     return pytest.param(name, effects, seed, marks=marks, id=campaign_id(name, effects, seed))
 
 
-def loop_on_identified_recordings(folder, curve, work) -> dict:
+def _heating_section(heating: dict, alpha_per_K: float) -> dict:
+    """The model's heating section for the rig's coil heating (``truth.json`` ``effects.heating``)."""
+    return {"heating": {"C_th_J_per_K": heating["C_th_J_per_K"], "R_th_K_per_W": heating["R_th_K_per_W"],
+                        "alpha_per_K": alpha_per_K}}
+
+
+def loop_on_identified_recordings(folder, curve, work, truth_tables=None) -> dict:
     """The pipeline's maps + G_eddy -> loop on a campaign folder and an identified curve, in memory
     (``work``: a folder for the maps the loop reads); what it found and the pooled held-out error of the
-    bare identified model (no effect, no eddy term) and of the final one."""
+    bare identified model (no effect, no eddy term) and of the final one.
+
+    Where the rig's only effect is coil heating and ``truth_tables`` (the truth's maps) are given, also the
+    reference a perfect loop is judged by: ``true_heating``, the identified maps with the rig's own C_th and
+    R_th (``truth.json``) instead of the fitted ones; ``perfect_before`` and ``perfect_after``, the truth's
+    maps without and with the rig's heating (nothing identified, nothing fitted): what the sensors' noise,
+    offsets and channel delays and eq. 4 leave of the error when the model is exact."""
     recs = [read_recording(p) for p in sorted((folder / "recordings").glob("*.csv"))]
     maps, eddy = campaign_maps(load_geometry(), curve, recs, preset="medium", name="identified")
     save_maps(maps.with_eddy(None, source="bare"), work / "bare")
@@ -68,22 +81,38 @@ def loop_on_identified_recordings(folder, curve, work) -> dict:
     _, val = split_recordings(recs)
     names = {recording_name(r) for r in val}
     bare = _cases(load_tables(work / "bare"), recs, flux_of=flux_of)
-    return {"found": effects_found([s.effect for s in res.steps if s.accepted], eddy),
-            "tried": [(s.effect, s.accepted) for s in res.steps],
-            "eddy_r2": None if eddy is None else eddy.r2,
-            "before": math.sqrt(_error(bare, names)), "after": math.sqrt(_error(res.cases_after, names))}
+    out = {"found": effects_found([s.effect for s in res.steps if s.accepted], eddy),
+           "tried": [(s.effect, s.accepted) for s in res.steps],
+           "eddy_r2": None if eddy is None else eddy.r2,
+           "before": math.sqrt(_error(bare, names)), "after": math.sqrt(_error(res.cases_after, names))}
+    effects = json.loads((folder / "truth.json").read_text())["effects"]
+    if truth_tables is not None and [k for k, v in effects.items() if v and k != "noise"] == ["heating"]:
+        def err(tables):
+            return math.sqrt(_error(_cases(tables, recs, flux_of=flux_of), names))
+
+        ident = load_tables(work / "maps")
+        out["true_heating"] = err(with_effects(ident, _heating_section(effects["heating"], ident.coil.alpha_per_K)))
+        out["perfect_before"] = err(truth_tables)
+        out["perfect_after"] = err(with_effects(truth_tables, _heating_section(effects["heating"],
+                                                                               truth_tables.coil.alpha_per_K)))
+    return out
 
 
-def loop_on_identified(shared, name, effects, seed, work) -> dict:
-    """:func:`loop_on_identified_recordings` on a campaign of :mod:`steelcampaigns`."""
+def loop_on_identified(shared, name, effects, seed) -> dict:
+    """:func:`loop_on_identified_recordings` on a campaign of :mod:`steelcampaigns` (with its truth's maps),
+    computed once per session (a JSON file beside the campaign, shared by the xdist workers)."""
     folder, csv = identified(shared, name, effects, seed)
-    return loop_on_identified_recordings(folder, load_material(csv), work)
+
+    def compute(work):
+        return loop_on_identified_recordings(folder, load_material(csv), work, load_tables(truth_dir(name)))
+
+    return once_per_session(shared, f"{folder.name}-loop", compute)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "effects", "seed"), [_param(*c) for c in CAMPAIGNS])
-def test_loop_from_identified_maps_adds_exactly_the_true_effects(shared_campaigns, tmp_path, name, effects, seed):
-    out = loop_on_identified(shared_campaigns, name, effects, seed, tmp_path)
+def test_loop_from_identified_maps_adds_exactly_the_true_effects(shared_campaigns, name, effects, seed):
+    out = loop_on_identified(shared_campaigns, name, effects, seed)
     want = sorted(EXPECTED[e] for e in effects.split(",") if e)
     msg = json.dumps(out)
     assert out["found"] == want, msg
@@ -91,3 +120,26 @@ def test_loop_from_identified_maps_adds_exactly_the_true_effects(shared_campaign
         assert out["after"] <= CUT * out["before"], msg
     else:  # nothing added; an eddy term too small to count as measured does not make the model worse
         assert not any(ok for _, ok in out["tried"]) and out["after"] <= 1.001 * out["before"], msg
+
+
+#: The campaigns whose rig had coil heating alone (the two SHORT_OF_GOAL).
+HEATING_ONLY = [c for c in CAMPAIGNS if c[1] == "heating"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "effects", "seed"), [pytest.param(*c, id=campaign_id(*c)) for c in HEATING_ONLY])
+def test_heating_alone_is_fitted_as_well_as_the_rigs_own_and_a_perfect_model_misses_the_cut(shared_campaigns, name,
+                                                                                            effects, seed):
+    """Why the heating-only campaigns are SHORT_OF_GOAL, checked rather than said: the loop's heating (C_th fitted
+    from the resistance tracks and the flux residual) leaves no more error than the rig's own C_th and R_th would on
+    the same identified maps, and even an exact model (the truth's maps with the rig's heating, nothing identified
+    or fitted) does not cut its own bare error to 1/3 on these campaigns: the sensors' noise, offsets and channel
+    delays through eq. 4 leave 0.15-0.27 % there, and a few kelvin of heating carry about as much. When this test
+    fails on its last assertion, the cut has come within reach and SHORT_OF_GOAL must be looked at again."""
+    out = loop_on_identified(shared_campaigns, name, effects, seed)
+    msg = json.dumps(out)
+    assert out["found"] == ["heating"], msg
+    assert out["after"] < out["before"], msg
+    assert out["after"] <= 1.05 * out["true_heating"], msg
+    assert out["perfect_after"] < out["perfect_before"], msg
+    assert out["perfect_after"] > CUT * out["perfect_before"], msg
