@@ -19,7 +19,7 @@ import json
 
 import numpy as np
 import pytest
-from steelcampaigns import CAMPAIGNS, campaign_id, identified
+from steelcampaigns import CAMPAIGNS, campaign_id, identified, once_per_session
 from truthsteels import is_published, prediction_errors
 
 PSI_TOL, F_TOL = 0.01, 0.02
@@ -65,10 +65,18 @@ def test_the_heated_campaigns_warm_the_coil_by_a_few_kelvin(shared_campaigns):
 
 
 def _errors(shared, name, effects, seed):
+    """The identified curve's prediction errors (once per session: both tests of a campaign read them), their
+    table and the identification's summary."""
     from solenoid_fmu.field import load_material
 
-    _, csv = identified(shared, name, effects, seed)
-    err = prediction_errors(load_material(csv), name)
+    folder, csv = identified(shared, name, effects, seed)
+
+    def compute(_work):
+        e = prediction_errors(load_material(csv), name)
+        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in e.items()}
+
+    err = {k: np.asarray(v) if isinstance(v, list) else v
+           for k, v in once_per_session(shared, f"{folder.name}-errors", compute).items()}
     table = f"Psi %:\n{np.round(err['psi_rel'] * 100, 2)}\nF %:\n{np.round(err['F_rel'] * 100, 2)}"
     return err, table, json.loads((csv.parent / "identification.json").read_text())
 
