@@ -77,7 +77,8 @@ def loop_on_identified_recordings(folder, curve, work, truth_tables=None) -> dic
     save_maps(maps.with_eddy(None, source="bare"), work / "bare")
     save_maps(maps, work / "maps")
     flux_of = FluxCache()
-    res = improve_tables(load_tables(work / "maps"), recs, flux_of=flux_of)
+    tables = load_tables(work / "maps")
+    res = improve_tables(tables, recs, flux_of=flux_of)
     _, val = split_recordings(recs)
     names = {recording_name(r) for r in val}
     bare = _cases(load_tables(work / "bare"), recs, flux_of=flux_of)
@@ -90,8 +91,7 @@ def loop_on_identified_recordings(folder, curve, work, truth_tables=None) -> dic
         def err(tables):
             return math.sqrt(_error(_cases(tables, recs, flux_of=flux_of), names))
 
-        ident = load_tables(work / "maps")
-        out["true_heating"] = err(with_effects(ident, _heating_section(effects["heating"], ident.coil.alpha_per_K)))
+        out["true_heating"] = err(with_effects(tables, _heating_section(effects["heating"], tables.coil.alpha_per_K)))
         out["perfect_before"] = err(truth_tables)
         out["perfect_after"] = err(with_effects(truth_tables, _heating_section(effects["heating"],
                                                                                truth_tables.coil.alpha_per_K)))

@@ -61,8 +61,10 @@ class GapConfig:
         st = solver.steel_idx
         self.G_s = np.ascontiguousarray(self.G[:, :, st])
         self.GGu_s = np.ascontiguousarray(self.GGu[:, :, st])
+        self.r_s = self.r[st]
         self.r2_s = self.r[st] ** 2
         self.w_over_r_s = self.w_over_r[st]
+        self.vol_s = 2 * np.pi * self.dx[st] * self.r[st]  # [m^3] per steel quadrature point
         lin = np.flatnonzero(~solver.steel)
         GGu_l = self.GGu[:, :, lin]
         wl = self.w_over_r[lin]
@@ -80,6 +82,10 @@ class GapConfig:
         data_abs = np.bincount(scatter, weights=np.abs(full).ravel(), minlength=solver.nnz)
         self.A_lin = sp.csr_matrix((data, solver.pattern_indices, solver.pattern_indptr), shape=shape)
         self.A_lin_abs = sp.csr_matrix((data_abs, solver.pattern_indices, solver.pattern_indptr), shape=shape)
+
+    def steel_B(self, g: np.ndarray) -> np.ndarray:
+        """|B| [T] at the steel's quadrature points from :meth:`~solenoid_fmu.field.fem.Solver.grad_steel`'s ``g``."""
+        return np.sqrt(g[0] ** 2 + g[1] ** 2) / self.r_s
 
     def velocity_L(self, vr: np.ndarray, vz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """L = dJ J^-1 (2, 2, nel) and dr/dx at quadrature points for vertex velocities (vr, vz).

@@ -92,7 +92,6 @@ class FluxModel:
         us = self._cache[2]
         s = self.solver
         cfg = s.config(self.x_m)
-        steel = s.steel
         P = len(theta)
         w = cfg.psi_weights.copy()
         w[s.dirichlet_mask] = 0.0
@@ -102,8 +101,8 @@ class FluxModel:
             e[p] = h
             pairs.append((self.curve_fn(theta + e), self.curve_fn(theta - e)))
         J = np.zeros((len(self.i_A), P))
-        wr = cfg.w_over_r[steel]
-        r2 = cfg.r[steel] ** 2
+        wr = cfg.w_over_r_s
+        r2 = cfg.r2_s
         with threadpool_limits(limits=1):
             for k, i in enumerate(self.i_A):
                 u = us[k]
@@ -125,10 +124,7 @@ class FluxModel:
         k = int(np.argmin(np.abs(self.i_A - i_A)))
         sol = s.solve(float(i_A), self.x_m, u0=self.u[k])
         cfg = s.config(self.x_m)
-        g = s.grad_steel(cfg, sol.u)
-        B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
-        vol = 2 * np.pi * cfg.dx[s.steel] * cfg.r[s.steel]
-        return s.material.H_of_B(B).ravel(), vol.ravel()
+        return s.material.H_of_B(cfg.steel_B(s.grad_steel(cfg, sol.u))).ravel(), cfg.vol_s.ravel()
 
 
 def _warm_sweep(geometry, curve: BHCurve, mesh_size: float, points, quantity: str) -> np.ndarray:

@@ -181,9 +181,7 @@ class PointModel:
 
     def _B_steel(self, cfg, u):
         """|B| [T] and volume [m^3] at the steel's quadrature points of solution u."""
-        st = self.solver.steel
-        g = self.solver.grad_steel(cfg, u)
-        return np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[st], 2 * np.pi * cfg.dx[st] * cfg.r[st]
+        return cfg.steel_B(self.solver.grad_steel(cfg, u)), cfg.vol_s
 
     def point_fields(self) -> tuple[dict, list]:
         """What the Jacobian needs of each point's solution at the last evaluated curve, by point index:
@@ -203,11 +201,10 @@ class PointModel:
                 K, _ = s.tangent(cfg, u, float(self.i_A[k]) * cfg.f_coil + cfg.f_fixed)
                 lam = s.linear_solver.solve(K.data, K.indices, K.indptr, w)
                 self.adjoint_solves += 1
-                st = s.steel
                 g = s.grad_steel(cfg, u)
                 gl = s.grad_steel(cfg, lam)
-                b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r[st] ** 2
-                flux[int(k)] = (np.sqrt(b2), (g[0] * gl[0] + g[1] * gl[1]) * cfg.w_over_r[st])
+                b2 = (g[0] ** 2 + g[1] ** 2) / cfg.r2_s
+                flux[int(k)] = (np.sqrt(b2), (g[0] * gl[0] + g[1] * gl[1]) * cfg.w_over_r_s)
             # force points: the steel's field at the point's own solution (no solve) and one solve a step away
             # (warm-started from the point's solution)
             lo_x, hi_x = s.geometry.stroke.min_m, s.geometry.stroke.max_m
@@ -264,10 +261,7 @@ class PointModel:
         s.material = self.curve_fn(theta)
         sol = s.solve(float(i_A), float(x_m), forces=False)
         cfg = s.config(float(x_m))
-        g = s.grad_steel(cfg, sol.u)
-        B = np.sqrt(g[0] ** 2 + g[1] ** 2) / cfg.r[s.steel]
-        vol = 2 * np.pi * cfg.dx[s.steel] * cfg.r[s.steel]
-        return s.material.H_of_B(B).ravel(), vol.ravel()
+        return s.material.H_of_B(cfg.steel_B(s.grad_steel(cfg, sol.u))).ravel(), cfg.vol_s.ravel()
 
 
 def _fd_gap(x0_m: float, lo_m: float, hi_m: float) -> float:
