@@ -96,7 +96,7 @@ def test_improve_on_maps_in_memory_reads_nothing_it_wrote(rig_maps, rig_campaign
     assert log.maps_or_fmus() == [], "improve read maps or an FMU from a file"
     # the record's dict form is improve.json's
     assert set(res.as_dict()) == {"fmu", "improved_fmu", "maps", "effects_added", "steps", "not_identifiable",
-                                  "diagnoses", "recordings", "before", "after"}
+                                  "diagnoses", "recordings", "before", "after", "force_timing"}
     # the improved maps in memory are those written
     assert load_maps(res.maps_dir).metadata == res.maps.metadata
 

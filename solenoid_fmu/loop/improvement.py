@@ -71,6 +71,7 @@ from ..maps import CharacteristicMaps, maps_tables, save_maps
 from ..measure import Recording, read_recording
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_THRESHOLD
+from .force_timing import ForceTiming, measure_force_timing
 from .gates import (
     FEW_PARAMETERS,
     FLUX_FITTED,
@@ -111,6 +112,7 @@ class Improvement(NamedTuple):
     cases_before: list
     cases_after: list
     not_identifiable: dict = {}
+    force_timing: ForceTiming = ForceTiming()
 
 
 #: The loop's simulation and gate error under their names before the steps had their own module (tests use them).
@@ -154,6 +156,11 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     missing = not_identifiable(recordings, flux_of)
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
+    timing = ForceTiming(note="not measured: the run's flux_of is no FluxCache, which would carry it")
+    if isinstance(flux_of, FluxCache):  # the simulations below compare the forces with this timing
+        timing = measure_force_timing(tables, recordings, flux_of)
+        flux_of.force_lead_samples = timing.used_lead_samples
+        say(timing.note)
     cases = cases0 = simulate_cases(tables, recordings, say, flux_of, memo)
     heat = None if "heating" in effects else heating_from_resistance(recordings, tables)
     if heat is not None:
@@ -187,7 +194,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         # flux were in: once more now that their part of the residual is modelled
         effects, tables, cases = refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
                                                       heating_first=True, min_fall=0.1 * min_gain)
-    return Improvement(tables, steps, diagnoses, cases0, cases, missing)
+    return Improvement(tables, steps, diagnoses, cases0, cases, missing, timing)
 
 
 @dataclass(frozen=True)
@@ -206,6 +213,9 @@ class ImproveResult:
         The diagnosis of each round.
     not_identifiable : dict
         Effect -> what to add to the campaign to identify it.
+    force_timing : ForceTiming
+        The force channel's lead over the voltage and current the forces were compared with
+        (:mod:`solenoid_fmu.loop.force_timing`).
     recordings : list of dict
         Per recording: ``file``, ``split`` and per signal the errors ``before``/``after`` (RMS, the signal's
         unit), ``*_nrmse`` (by the recording's range), ``*_nrmse_fs`` (by the full scale per kind).
@@ -231,6 +241,7 @@ class ImproveResult:
     improved_fmu: Path | None = None
     maps_dir: Path | None = None
     images: dict = field(default_factory=dict, repr=False)
+    force_timing: ForceTiming = ForceTiming()
 
     @property
     def effects_added(self) -> list:
@@ -239,12 +250,12 @@ class ImproveResult:
 
     def as_dict(self) -> dict:
         """The JSON form (``improve.json``): ``effects_added``, ``steps``, ``fmu``, ``improved_fmu``, ``maps``,
-        ``not_identifiable``, ``diagnoses``, ``recordings``, ``before``, ``after``."""
+        ``not_identifiable``, ``diagnoses``, ``recordings``, ``before``, ``after``, ``force_timing``."""
         return {"fmu": self.source, "improved_fmu": None if self.improved_fmu is None else str(self.improved_fmu),
                 "maps": None if self.maps_dir is None else str(self.maps_dir),
                 "effects_added": self.effects_added, "steps": [s.as_dict() for s in self.steps],
                 "not_identifiable": self.not_identifiable, "diagnoses": self.diagnoses, "recordings": self.recordings,
-                "before": self.before, "after": self.after}
+                "before": self.before, "after": self.after, "force_timing": self.force_timing.as_dict()}
 
 
 def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
@@ -307,7 +318,8 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     after = validate_model(improved_tables, recs, label=str(out_fmu or improved.name), report_dir=report_dir,
                            flux_of=flux_of, images=images)
     result = ImproveResult(improved, improved_tables, found.steps, found.diagnoses, found.not_identifiable,
-                           _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir, images)
+                           _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir, images,
+                           found.force_timing)
     if report_dir is not None:
         Path(report_dir).mkdir(parents=True, exist_ok=True)
         atomic_write_text(Path(report_dir) / "improve.json", json.dumps(jsonable(result.as_dict()), indent=1) + "\n")

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..fmu import simulate_recording
 from ..measure import Recording, flux_linkage, read_recording
+from .force_timing import retimed, shifted
 from .signals import conditioned_position, detrend
 
 #: A flux residual is compared orthogonal to a linear trend when the eq.-4 offset's uncertainty
@@ -75,10 +76,16 @@ class FluxCache:
     Call it like ``flux_linkage(rec)``; results are kept per recording object while the cache
     lives (``improve`` keeps one per run: the flux of a recording does not change between its
     simulations, the identifiability check and the fits).
+
+    It also carries the other thing the run measured of the recordings' channels: ``force_lead_samples``,
+    the force channel's lead over the voltage and current [sample periods] (0 unless the loop measured a
+    significant one, :mod:`solenoid_fmu.loop.force_timing`), by which :func:`cases_from_recordings`
+    shifts every simulated force before comparing it.
     """
 
     def __init__(self):
         self._by_id: dict = {}
+        self.force_lead_samples = 0.0
 
     def __call__(self, rec):
         hit = self._by_id.get(id(rec))
@@ -133,12 +140,14 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
         :func:`solenoid_fmu.fmu.simulate_model` in process).
     flux_of : callable, optional
         ``flux_of(recording) -> FluxResult``, the eq.-4 flux of a recording as read (default
-        :func:`solenoid_fmu.measure.flux_linkage`; a :class:`FluxCache` computes it once).
+        :func:`solenoid_fmu.measure.flux_linkage`; a :class:`FluxCache` computes it once, and its
+        ``force_lead_samples`` shift the simulated forces).
     """
     if simulate is None:
         def simulate(rec, R_ohm):
             return simulate_recording(fmu_path, rec, R_ohm=R_ohm)
 
+    lead = float(getattr(flux_of, "force_lead_samples", 0.0))
     cases = []
     for item in recordings:
         rec = item if isinstance(item, Recording) else read_recording(item)
@@ -148,13 +157,13 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
         if rec.position_m is not None:  # drive the model with the position less its encoder jitter
             rec = dataclasses.replace(rec, position_m=conditioned_position(rec.position_m))
         # the flux does not depend on the position: that of the recording as read
-        case = residual_case(rec, simulate, flux_of=lambda _rec, read=read: flux_of(read))
+        case = residual_case(rec, simulate, flux_of=lambda _rec, read=read: flux_of(read), force_lead_samples=lead)
         if case is not None:
             cases.append(case)
     return cases
 
 
-def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
+def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float = 0.0) -> ResidualCase | None:
     """Residuals of one recording against a simulator (None if it has no signal to compare).
 
     The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
@@ -172,6 +181,11 @@ def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
     has no measured voltage offset either: its flux residual is known up to ``a + b t`` and is
     projected orthogonal to that trend (``ResidualCase.detrended``). ``flux_of`` computes the
     eq.-4 flux (default :func:`solenoid_fmu.measure.flux_linkage`).
+
+    ``force_lead_samples`` is the force channel's measured lead over the voltage and current
+    (:mod:`solenoid_fmu.loop.force_timing`; 0: the channels are compared as sampled). The model is then
+    driven by the voltage and current advanced by it (:func:`~solenoid_fmu.loop.force_timing.retimed`), its
+    force compared as it comes, its flux and current delayed by it again to meet the measured ones.
     """
     residuals, measured = {}, {}
     fr = None
@@ -179,9 +193,14 @@ def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
     if rec.voltage_V is not None and rec.kind != "voltage_step":
         fr = flux_of(rec)
         R = fr.R_ohm
-    sim = simulate(rec, R)
+    drive = retimed(rec, force_lead_samples)
+    sim = simulate(drive, R)
     s = sim.recording
-    psi_sim = np.asarray(s.extra["psi_Wb"], dtype=float)
+
+    def back(v):  # a simulated signal on the voltage's and current's time base
+        return shifted(rec.time_s, v, -force_lead_samples)
+
+    psi_sim = back(s.extra["psi_Wb"])
     detrended = ()
     if rec.force_N is not None:
         residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
@@ -192,9 +211,9 @@ def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
                 fr = flux_of(rec)
                 R = fr.R_ohm
             t = np.asarray(rec.time_s, dtype=float)
-            i = np.asarray(rec.current_A, dtype=float)
+            i = np.asarray(drive.current_A, dtype=float)
             inc = np.diff(t) * (np.asarray(s.voltage_V)[1:] - R * i[1:])
-            psi_app = psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)])
+            psi_app = back(psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)]))
             psi_meas = psi_sim[0] + fr.psi_Wb
             res = psi_meas - psi_app
             if fr.offset_uncertainty_Wb > OFFSET_UNCERTAINTY_SHARE * float(np.max(np.abs(psi_meas))):
@@ -203,7 +222,7 @@ def residual_case(rec, simulate, flux_of=flux_linkage) -> ResidualCase | None:
             residuals["psi_Wb"] = res
             measured["psi_Wb"] = psi_meas
     else:
-        residuals["current_A"] = np.asarray(rec.current_A) - np.asarray(s.current_A)
+        residuals["current_A"] = np.asarray(rec.current_A) - back(s.current_A)
         measured["current_A"] = np.asarray(rec.current_A)
     if not residuals:
         return None

@@ -21,6 +21,12 @@ the figures drawn by :mod:`solenoid_fmu.loop.plots`.
 
 :func:`validate_model` runs the model in this process instead of the FMU (``improve``: the FMU is an output).
 
+Forces are compared on the time base of the voltage and current that drive the model: :func:`validate`
+measures the force channel's lead on the recordings (:mod:`solenoid_fmu.loop.force_timing`, with the maps
+the FMU carries) and shifts the simulated force by it where it is significant; :func:`validate_model` uses
+the lead its ``flux_of`` carries (``improve`` measures it once per run). The result's ``force_lead_samples``
+is the lead used [sample periods], ``force_timing`` (:func:`validate`) the measurement.
+
 Output (:func:`validate_cases`, :func:`validate`; JSON as printed by ``solenoid-fmu validate --json``)::
 
     {"recordings": [{"file": "01_flux_0p50A.csv", "kind": "flux", "drive": "current",
@@ -36,14 +42,16 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..errors import FmuInputError, RecordingError
+from ..errors import FmuInputError, RecordingError, SolenoidError
 from ..fileio import atomic_write_bytes, atomic_write_text
 from ..fmu import simulate_model
 from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
+from .force_timing import ForceTiming, measure_force_timing
 from .metrics import ValidationError, summarize, validate_cases
 from .plots import overlay_png, residual_png
-from .residuals import cases_from_recordings, recording_name
+from .residuals import FluxCache, cases_from_recordings, recording_name
+from .tables import tables_from_fmu
 
 
 def _unique_stems(names: list[str]) -> list[str]:
@@ -74,7 +82,7 @@ def _read_all(recordings) -> list:
     return recs
 
 
-def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=flux_linkage) -> dict:
+def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=None) -> dict:
     """Run the FMU on each recording's measured inputs and compare every output it has.
 
     Parameters
@@ -89,8 +97,10 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
     progress : callable, optional
         Called with each file name before it is simulated.
     flux_of : callable, optional
-        ``flux_of(recording) -> FluxResult`` (default :func:`solenoid_fmu.measure.flux_linkage`; a
-        :class:`~solenoid_fmu.loop.residuals.FluxCache` shared with other steps computes it once).
+        ``flux_of(recording) -> FluxResult`` (default: a new :class:`~solenoid_fmu.loop.residuals.FluxCache`;
+        one shared with other steps computes the eq.-4 flux once). A FluxCache also carries the force
+        channel's lead measured here; another callable (e.g. :func:`solenoid_fmu.measure.flux_linkage`)
+        compares the forces as sampled.
 
     Returns
     -------
@@ -113,8 +123,20 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=fl
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
         raise FmuInputError(f"{fmu_path}: FMU file not found")
-    return _validate(str(fmu_path), recordings, lambda rec: cases_from_recordings(fmu_path, [rec], progress=progress,
-                                                                                  flux_of=flux_of), report_dir)
+    recs = _read_all(recordings)
+    timing = ForceTiming(note="not measured: flux_of is no FluxCache, which would carry it")
+    if flux_of is None:
+        flux_of = FluxCache()
+    if isinstance(flux_of, FluxCache):
+        try:
+            timing = measure_force_timing(tables_from_fmu(fmu_path), recs, flux_of)
+        except SolenoidError as exc:  # an FMU without readable maps: compared as sampled
+            timing = ForceTiming(note=f"not measured: {exc}")
+        flux_of.force_lead_samples = timing.used_lead_samples
+    lead = float(getattr(flux_of, "force_lead_samples", 0.0))
+    return _validate(str(fmu_path), recs, lambda rec: cases_from_recordings(fmu_path, [rec], progress=progress,
+                                                                            flux_of=flux_of), report_dir,
+                     extra={"force_lead_samples": lead, "force_timing": timing.as_dict()})
 
 
 def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None, progress=None,
@@ -148,11 +170,14 @@ def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None
         return cases_from_recordings(None, [rec], progress=progress, flux_of=flux_of,
                                      simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
 
-    return _validate(label, recordings, cases_of, report_dir, images)
+    return _validate(label, recordings, cases_of, report_dir, images,
+                     extra={"force_lead_samples": float(getattr(flux_of, "force_lead_samples", 0.0))})
 
 
-def _validate(label: str, recordings, cases_of, report_dir, images: dict | None = None) -> dict:
-    """The validation of :func:`validate` and :func:`validate_model`; ``cases_of(rec)`` simulates one."""
+def _validate(label: str, recordings, cases_of, report_dir, images: dict | None = None,
+              extra: dict | None = None) -> dict:
+    """The validation of :func:`validate` and :func:`validate_model`; ``cases_of(rec)`` simulates one; ``extra``
+    joins the result."""
     recordings = list(recordings)
     if not recordings:
         raise ValidationError("validate needs at least one recording")
@@ -183,7 +208,7 @@ def _validate(label: str, recordings, cases_of, report_dir, images: dict | None 
                 if images is not None:
                     images[written] = png
         entries.append(entry)
-    result = {"fmu": label, "recordings": entries, "summary": summarize(entries), "figures": figures}
+    result = {"fmu": label, "recordings": entries, "summary": summarize(entries), "figures": figures, **(extra or {})}
     if out_dir is not None:
         atomic_write_text(out_dir / "validation.json", json.dumps(result, indent=2) + "\n")
     return result
