@@ -35,7 +35,7 @@ from pathlib import Path
 from .field import BHCurve, Geometry, Solution, load_geometry, load_material, solve_point
 from .fmu import build_fmu, simulate_recording
 from .identification import identify_from_recordings
-from .loop import Diagnosis, cases_from_recordings, improve, validate
+from .loop import Diagnosis, improve, timed_cases, validate
 from .loop import diagnose as _diagnose_cases
 from .maps import build_maps, force_at, force_psi_at, i_f_at, load_maps, psi_at, save_maps
 from .measure import flux_linkage, make_recording, read_recording, write_recording
@@ -110,7 +110,7 @@ def diagnose(fmu_path, recordings, **options) -> Diagnosis:
     ``verdict`` (the effect, or ``"unexplained"``). Options (``threshold`` ...) as in
     :func:`solenoid_fmu.loop.diagnose`.
     """
-    cases = cases_from_recordings(fmu_path, recordings)
+    cases = timed_cases(fmu_path, recordings)
     if not cases:
         raise ValueError("no recording has a signal to compare (voltage, current or force)")
     return _diagnose_cases(cases, **options)

@@ -191,5 +191,13 @@ def test_cli_diagnose_names_the_undeclared_effect(rig_maps, rig_campaign, effect
     assert d["verdict"] == expected, d["ranking"]
     if expected != "unexplained":
         assert d["ranking"][0]["effect"] == expected and d["ranking"][0]["score"] > 0.4
-    else:
-        assert all(c["score"] < 0.25 for c in d["ranking"])
+    else:  # nothing named because the residual is at the sensors' level (below the significance floor) ...
+        from solenoid_fmu.loop.diagnosis import DEFAULT_MIN_NRMS
+
+        assert max(d["residual_nrms"].values()) < DEFAULT_MIN_NRMS, d["residual_nrms"]
+        # ... and no effect explains much of it. The flux comparison keeps a timing floor: the model, fed the
+        # interval means of the current, lags the eq.-4 flux of interval-mean samples by 0.37 samples on these
+        # 200-Hz recordings (the eddy term's lag against the held input), a shape hysteresis explains 30 % of
+        # (score 0.26 once the force compares on its own time base, 0.18 while the force's half-sample lead
+        # diluted it): the bound sits above that floor, under any effect's score (0.4 and more, above).
+        assert all(c["score"] < 0.3 for c in d["ranking"]), d["ranking"]

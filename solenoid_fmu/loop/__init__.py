@@ -8,7 +8,7 @@ from .metrics import ValidationError, signal_metrics, validate_cases
 from .residuals import ResidualCase, cases_from_recordings
 from .split import split_recordings
 from .tables import ImproveError, maps_from_fmu, tables_from_fmu, with_effects
-from .validation import validate, validate_model
+from .validation import timed_cases, validate, validate_model
 
 __all__ = [
     "Diagnosis",
@@ -28,6 +28,7 @@ __all__ = [
     "signal_metrics",
     "split_recordings",
     "tables_from_fmu",
+    "timed_cases",
     "validate",
     "validate_cases",
     "validate_model",

@@ -12,8 +12,7 @@ from ..fileio import jsonable, refuse_overwriting_inputs, require_directory
 from .diagnosis import DEFAULT_THRESHOLD, diagnose
 from .improvement import DEFAULT_MAX_EFFECTS, DEFAULT_MIN_GAIN, effects_summary_lines, improve
 from .metrics import fmt
-from .residuals import cases_from_recordings
-from .validation import validate
+from .validation import timed_cases, validate
 
 
 def add_cli(sub) -> None:
@@ -86,7 +85,7 @@ def _cli_diagnose(args) -> int:
         if not args.json:
             print(f"simulating {name} ...", file=sys.stderr)
 
-    cases = cases_from_recordings(args.fmu, args.recordings, progress=progress)
+    cases = timed_cases(args.fmu, args.recordings, progress=progress)
     if not cases:
         print("error: no recording has a signal to compare (voltage, current or force)", file=sys.stderr)
         return 1

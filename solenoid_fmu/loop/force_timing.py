@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolenoidError
+from .tables import tables_from_fmu
 
 #: The lead is applied when it is at least this many standard errors from zero ...
 SIGNIFICANCE = 4.0
@@ -90,12 +91,19 @@ def shifted(time_s, values, lead_samples: float) -> np.ndarray:
 def retimed(rec, lead_samples: float):
     """The recording with its voltage and current advanced by ``lead_samples`` (on the force's time base):
     a model driven by it gives the force as the force channel samples it, while the position, sampled
-    at the time stamp like the force, stays as it is."""
+    at the time stamp like the force, stays as it is. The first sample stays too: the model starts from
+    the state the recording's first current gives (the anchor of the flux comparison)."""
     if lead_samples == 0.0:
         return rec
     t = rec.time_s
-    return dataclasses.replace(rec, current_A=shifted(t, rec.current_A, lead_samples),
-                               voltage_V=None if rec.voltage_V is None else shifted(t, rec.voltage_V, lead_samples))
+
+    def advanced(v):
+        out = shifted(t, v, lead_samples)
+        out[0] = v[0]
+        return out
+
+    return dataclasses.replace(rec, current_A=advanced(rec.current_A),
+                               voltage_V=None if rec.voltage_V is None else advanced(rec.voltage_V))
 
 
 def _series(tables, rec, flux_of):
@@ -202,3 +210,15 @@ def measure_force_timing(tables, recordings, flux_of) -> ForceTiming:
                else "the model is driven on the force's time base" if applied
                else "not significant: the channels are compared as sampled"))
     return ForceTiming(lead, se, applied, per, note)
+
+
+def timing_of_fmu(fmu_path, recordings, flux_of) -> ForceTiming:
+    """:func:`measure_force_timing` with the maps an FMU carries, its lead set on ``flux_of`` (a
+    :class:`~solenoid_fmu.loop.residuals.FluxCache`) for the comparisons that follow; an FMU whose maps
+    cannot be read gives no lead (the note says why)."""
+    try:
+        timing = measure_force_timing(tables_from_fmu(fmu_path), recordings, flux_of)
+    except SolenoidError as exc:
+        timing = ForceTiming(note=f"not measured: {exc}")
+    flux_of.force_lead_samples = timing.used_lead_samples
+    return timing

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fmu import simulate_recording
+from ..fmu import DRIVE_BY_KIND, simulate_recording
 from ..measure import Recording, flux_linkage, read_recording
 from .force_timing import retimed, shifted
 from .signals import conditioned_position, detrend
@@ -183,9 +183,13 @@ def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float
     eq.-4 flux (default :func:`solenoid_fmu.measure.flux_linkage`).
 
     ``force_lead_samples`` is the force channel's measured lead over the voltage and current
-    (:mod:`solenoid_fmu.loop.force_timing`; 0: the channels are compared as sampled). The model is then
-    driven by the voltage and current advanced by it (:func:`~solenoid_fmu.loop.force_timing.retimed`), its
-    force compared as it comes, its flux and current delayed by it again to meet the measured ones.
+    (:mod:`solenoid_fmu.loop.force_timing`; 0: the channels are compared as sampled). A current-driven
+    model is then driven by the current (and voltage) advanced by it
+    (:func:`~solenoid_fmu.loop.force_timing.retimed`), its force compared as it comes, its flux delayed by it
+    again to meet the measured one; the position, sampled at the stamp like the force, is not moved. A
+    voltage-driven one (a voltage step, the armature at rest) is driven as recorded and its force advanced
+    by the lead: its voltage held at the interval's mean is already what eq. 4 integrates, and advancing the
+    voltage would smear the step over one more sample.
     """
     residuals, measured = {}, {}
     fr = None
@@ -193,17 +197,20 @@ def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float
     if rec.voltage_V is not None and rec.kind != "voltage_step":
         fr = flux_of(rec)
         R = fr.R_ohm
-    drive = retimed(rec, force_lead_samples)
+    lag = force_lead_samples
+    by_voltage = DRIVE_BY_KIND.get(rec.kind, "current") == "voltage"
+    drive = rec if by_voltage else retimed(rec, lag)
     sim = simulate(drive, R)
     s = sim.recording
 
     def back(v):  # a simulated signal on the voltage's and current's time base
-        return shifted(rec.time_s, v, -force_lead_samples)
+        return np.asarray(v, dtype=float) if drive is rec else shifted(rec.time_s, v, -lag)
 
     psi_sim = back(s.extra["psi_Wb"])
     detrended = ()
     if rec.force_N is not None:
-        residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(s.force_N)
+        f_sim = s.force_N if drive is not rec else shifted(rec.time_s, s.force_N, lag)
+        residuals["force_N"] = np.asarray(rec.force_N) - np.asarray(f_sim)
         measured["force_N"] = np.asarray(rec.force_N)
     if sim.drive_mode == "current":
         if rec.voltage_V is not None:

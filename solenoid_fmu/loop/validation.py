@@ -42,16 +42,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..errors import FmuInputError, RecordingError, SolenoidError
+from ..errors import FmuInputError, RecordingError
 from ..fileio import atomic_write_bytes, atomic_write_text
 from ..fmu import simulate_model
 from ..measure import Recording, flux_linkage, read_recording
 from ..realtime import MapTables
-from .force_timing import ForceTiming, measure_force_timing
+from .force_timing import ForceTiming, timing_of_fmu
 from .metrics import ValidationError, summarize, validate_cases
 from .plots import overlay_png, residual_png
 from .residuals import FluxCache, cases_from_recordings, recording_name
-from .tables import tables_from_fmu
 
 
 def _unique_stems(names: list[str]) -> list[str]:
@@ -128,15 +127,21 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=No
     if flux_of is None:
         flux_of = FluxCache()
     if isinstance(flux_of, FluxCache):
-        try:
-            timing = measure_force_timing(tables_from_fmu(fmu_path), recs, flux_of)
-        except SolenoidError as exc:  # an FMU without readable maps: compared as sampled
-            timing = ForceTiming(note=f"not measured: {exc}")
-        flux_of.force_lead_samples = timing.used_lead_samples
+        timing = timing_of_fmu(fmu_path, recs, flux_of)
     lead = float(getattr(flux_of, "force_lead_samples", 0.0))
     return _validate(str(fmu_path), recs, lambda rec: cases_from_recordings(fmu_path, [rec], progress=progress,
                                                                             flux_of=flux_of), report_dir,
                      extra={"force_lead_samples": lead, "force_timing": timing.as_dict()})
+
+
+def timed_cases(fmu_path, recordings, progress=None) -> list:
+    """The residual cases of an FMU on ``recordings`` (:func:`cases_from_recordings`), the forces compared on
+    the time base the recordings' force channel has (:func:`~solenoid_fmu.loop.force_timing.timing_of_fmu`):
+    what ``diagnose`` works on, compared as :func:`validate` compares."""
+    recs = _read_all(recordings)
+    flux_of = FluxCache()
+    timing_of_fmu(fmu_path, recs, flux_of)
+    return cases_from_recordings(fmu_path, recs, progress=progress, flux_of=flux_of)
 
 
 def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None, progress=None,
