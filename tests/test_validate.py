@@ -130,6 +130,25 @@ def test_the_true_model_validates_within_one_percent(setup, good_result):
             assert m["max"] >= m["rms"] >= 0
 
 
+def test_the_force_is_compared_on_its_own_time_base(setup, good_result):
+    """The rig samples the force at the stamp and averages voltage and current over the interval: validate
+    measures the half-sample lead and compares with it; compared as sampled, the voltage step's force error
+    is several times larger (the current rises by a large share of its range within one 1-ms sample)."""
+    from solenoid_fmu.measure import flux_linkage
+
+    res, _ = good_result
+    timing = res["force_timing"]
+    assert timing["applied"] and abs(timing["lead_samples"] - 0.5) < 0.05, timing
+    assert res["force_lead_samples"] == timing["lead_samples"]
+    plain = validate(setup["good"], setup["files"], flux_of=flux_linkage)  # no cache: no lead
+    assert plain["force_lead_samples"] == 0.0 and not plain["force_timing"]["applied"]
+
+    def step_force(r):
+        return next(x for x in r["recordings"] if x["kind"] == "voltage_step")["signals"]["force_N"]["rms"]
+
+    assert step_force(res) < 0.3 * step_force(plain), (step_force(res), step_force(plain))
+
+
 def test_a_wrong_eddy_conductance_gives_larger_errors(setup, good_result):
     good, _ = good_result
     wrong = validate(setup["wrong"], setup["files"])
