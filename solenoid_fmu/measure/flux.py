@@ -86,6 +86,10 @@ class FluxResult:
         The resistance track R(t) integrated with (``resistance="track"`` or a given track;
         :mod:`solenoid_fmu.measure.resistance`), else None (one R throughout). With a track
         ``R_ohm`` is R at the first sample.
+    head_rest_samples : int
+        Samples of the zero-current rest phase at the start (0 without one, see :func:`flux_linkage`'s
+        Notes): there the flux is constant and only the sensors' noise moves the current, so a comparison
+        anchors the flux on their mean rather than on the first sample alone.
     """
 
     time_s: np.ndarray
@@ -109,6 +113,7 @@ class FluxResult:
     offset_measured: bool = True
     offset_uncertainty_Wb: float = 0.0
     track: ResistanceTrack | None = None
+    head_rest_samples: int = 0
 
     def summary(self) -> dict:
         """The CLI's JSON object: numbers in SI, NaN as None."""
@@ -130,6 +135,7 @@ class FluxResult:
             "starts_at_rest": self.starts_at_rest,
             "offset_measured": self.offset_measured,
             "offset_uncertainty_Wb": num(self.offset_uncertainty_Wb),
+            "head_rest_samples": self.head_rest_samples,
             **self._track_summary(num),
         }
 
@@ -226,7 +232,16 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
                       offset_drift_V_per_s=float(c.drift_V_per_s), current_offset_A=c.current_offset_A,
                       branches=branches, **curve, notes=notes, starts_at_rest=bool(abs(float(i_s[0])) <= c.thr),
                       offset_measured=c.n_anchors > 0, offset_uncertainty_Wb=c.offset_se_V * float(t[-1] - t[0]),
-                      track=track)
+                      track=track, head_rest_samples=_head_rest(c))
+
+
+def _head_rest(c) -> int:
+    """Leading samples at rest (the smoothed current within the rest threshold, less the last 5 %, at least 3;
+    unlike the offset's rest phase, of any duration): 0 when the recording does not start at rest."""
+    active = np.abs(c.i_s) > c.thr
+    first = int(np.argmax(active)) if active.any() else 0
+    n = first - max(1, first // 20)
+    return n if n >= 3 else 0
 
 
 def _track_of(rec: Recording, resistance, R_ohm: float | None, n: int) -> ResistanceTrack | None:
