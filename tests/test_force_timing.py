@@ -91,3 +91,20 @@ def test_an_exact_models_voltage_step_force_falls_to_the_sensor_noise_with_the_l
            for fc in (plain, timed)]
     assert rms[0] > 1.5 * noise, rms  # half a sample of a fast rise: well above the noise
     assert rms[1] < 1.25 * noise and rms[1] < 0.65 * rms[0], rms  # the lead removes it: the sensor is left
+
+
+def test_a_flux_from_rest_is_anchored_on_the_head_rest_not_on_the_first_samples_noise(shared_campaigns):
+    """The model follows the current sensor's noise at rest (initial permeability: 1.5 mA, 3 sigma of the noise, is
+    about 1 mWb here); an unlucky first sample must not move the whole flux comparison (it did: one sample was the
+    anchor)."""
+    _, recs, tables = _campaign(shared_campaigns, "random-2", "", 20)
+    fc = FluxCache()
+    rec = next(r for r in recs if r.kind in ("flux", "eddy") and r.voltage_V is not None
+               and fc(r).head_rest_samples >= 20)
+    bumped = dataclasses.replace(rec, current_A=np.r_[rec.current_A[0] + 1.5e-3, rec.current_A[1:]])
+    psi_step = abs(tables.psi_of_current(1.5e-3, float(rec.positions_m()[0])) - tables.psi_of_current(0.0, float(
+        rec.positions_m()[0])))
+    res = [_cases(tables, [r], flux_of=FluxCache())[0].residuals["psi_Wb"] for r in (rec, bumped)]
+    moved = float(np.median(res[1] - res[0]))
+    assert psi_step > 2.0 * float(np.sqrt(np.mean(res[0] ** 2))), psi_step  # the bump would dominate the residual
+    assert abs(moved) < 0.1 * psi_step, (moved, psi_step)  # the head rest's mean takes one sample's bump
