@@ -163,6 +163,16 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
     return cases
 
 
+def _head_anchored(psi_meas, res, fr) -> tuple:
+    """(measured flux, flux residual) anchored on the mean over the recording's head rest
+    (``fr.head_rest_samples``, :func:`residual_case`), as given without one."""
+    n = int(getattr(fr, "head_rest_samples", 0))
+    if n < 2:
+        return psi_meas, res
+    shift = float(np.mean(res[:n]))
+    return psi_meas - shift, res - shift
+
+
 def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float = 0.0) -> ResidualCase | None:
     """Residuals of one recording against a simulator (None if it has no signal to compare).
 
@@ -227,10 +237,7 @@ def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float
             psi_app = back(psi_sim[0] + np.concatenate([[0.0], np.cumsum(inc)]))
             psi_meas = psi_sim[0] + fr.psi_Wb
             res = psi_meas - psi_app
-            n_head = int(getattr(fr, "head_rest_samples", 0))
-            if n_head >= 2:  # anchored on the head rest's mean: the first sample's current noise moves psi_sim[0]
-                shift = float(np.mean(res[:n_head]))
-                psi_meas, res = psi_meas - shift, res - shift
+            psi_meas, res = _head_anchored(psi_meas, res, fr)
             if fr.offset_uncertainty_Wb > OFFSET_UNCERTAINTY_SHARE * float(np.max(np.abs(psi_meas))):
                 res = detrend(res, t)
                 detrended = ("psi_Wb",)
