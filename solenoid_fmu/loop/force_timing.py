@@ -11,16 +11,20 @@ as large as the effects the loop looks for, and it is the same in every model: a
 of the force is the force at ``t_k + s dt_k`` on the time base of the voltage and current (``dt_k`` the local
 sample period). It is measured model-free: on every recording with force and voltage and the armature at
 rest (a ramp, a voltage step), the force the maps give for the eq.-4 flux, ``F(Psi(t), x)``, is shifted by
-``s`` samples until it matches the measured force best, with a constant, a trend, ``F`` and ``Psi`` per
-recording projected out (an offset, a gain error of the maps, a slow flux drift do not look like a lead;
-eddy currents, hysteresis and heating act on the flux, which eq. 4 measures, not on ``F(Psi, x)``). Only
-time-shapes that move the force sooner or later are left: that is the lead. A lead in samples, not in
-seconds, because integrating converters make it a fraction of the sample period at any sample rate.
+``s`` samples until it matches the measured force best, with the shapes of a force offset, a gain error of
+the maps and the eq.-4 flux's own errors (an offset, a drift, the coil heating's drift; :func:`_nuisance`)
+projected out per recording: eddy currents, hysteresis and heating act on the flux, which eq. 4 measures,
+not on ``F(Psi, x)``. Only time-shapes that move the force sooner or later are left: that is the lead. A
+lead in samples, not in seconds, because integrating converters make it a fraction of the sample period at
+any sample rate. The force is taken to be sampled at its stamp.
 
-:func:`shifted_force` moves a simulated force by ``s`` samples; the loop compares the model's force with
-the measured one that way (:func:`solenoid_fmu.loop.residuals.residual_case`) when the lead is significant
-(at least :data:`SIGNIFICANCE` standard errors, and at least :data:`MIN_LEAD_SAMPLES`): it is the
-measurement's timing, as eq. 4's offsets are its voltage offsets, and it is applied to every model alike.
+Where the lead is significant (at least :data:`SIGNIFICANCE` standard errors, and at least
+:data:`MIN_LEAD_SAMPLES`) the loop compares with it (:func:`solenoid_fmu.loop.residuals.residual_case`): a
+current-driven model is driven with the current and voltage advanced by ``s`` samples (:func:`retimed`), so
+that its force is the force the channel samples, and its flux is delayed by ``s`` again (:func:`shifted`) to
+meet eq. 4's; the position, sampled at the stamp like the force, is not moved. A voltage-driven one (a step at
+rest) has its force advanced instead. It is the measurement's timing, as eq. 4's offsets are its voltage
+offsets, and it is applied to every model alike.
 """
 
 from __future__ import annotations

@@ -79,8 +79,8 @@ class FluxCache:
 
     It also carries the other thing the run measured of the recordings' channels: ``force_lead_samples``,
     the force channel's lead over the voltage and current [sample periods] (0 unless the loop measured a
-    significant one, :mod:`solenoid_fmu.loop.force_timing`), by which :func:`cases_from_recordings`
-    shifts every simulated force before comparing it.
+    significant one, :mod:`solenoid_fmu.loop.force_timing`), with which :func:`cases_from_recordings`
+    compares every simulated force on the force channel's time base (:func:`residual_case`).
     """
 
     def __init__(self):
@@ -141,7 +141,7 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
     flux_of : callable, optional
         ``flux_of(recording) -> FluxResult``, the eq.-4 flux of a recording as read (default
         :func:`solenoid_fmu.measure.flux_linkage`; a :class:`FluxCache` computes it once, and its
-        ``force_lead_samples`` shift the simulated forces).
+        ``force_lead_samples`` put the simulated forces on the force channel's time base).
     """
     if simulate is None:
         def simulate(rec, R_ohm):
@@ -193,8 +193,8 @@ def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float
     about 0.5 mWb), and one sample's draw would shift the whole comparison by it (0.23 % of full scale
     on random-0's eddy recording; the exact model's pooled error there 0.235 -> 0.172 %). A recording
     without any zero-current rest has no measured voltage offset either: its flux residual is known
-    up to ``a + b t`` and is projected orthogonal to that trend (``ResidualCase.detrended``). ``flux_of`` computes the
-    eq.-4 flux (default :func:`solenoid_fmu.measure.flux_linkage`).
+    up to ``a + b t`` and is projected orthogonal to that trend (``ResidualCase.detrended``).
+    ``flux_of`` computes the eq.-4 flux (default :func:`solenoid_fmu.measure.flux_linkage`).
 
     ``force_lead_samples`` is the force channel's measured lead over the voltage and current
     (:mod:`solenoid_fmu.loop.force_timing`; 0: the channels are compared as sampled). A current-driven

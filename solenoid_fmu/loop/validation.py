@@ -23,7 +23,8 @@ the figures drawn by :mod:`solenoid_fmu.loop.plots`.
 
 Forces are compared on the time base of the voltage and current that drive the model: :func:`validate`
 measures the force channel's lead on the recordings (:mod:`solenoid_fmu.loop.force_timing`, with the maps
-the FMU carries) and shifts the simulated force by it where it is significant; :func:`validate_model` uses
+the FMU carries) and, where it is significant, compares the force on its channel's time base
+(:func:`~solenoid_fmu.loop.residuals.residual_case`); :func:`validate_model` uses
 the lead its ``flux_of`` carries (``improve`` measures it once per run). The result's ``force_lead_samples``
 is the lead used [sample periods], ``force_timing`` (:func:`validate`) the measurement.
 
