@@ -334,6 +334,25 @@ def test_the_band_belongs_to_the_chosen_curve_when_stage_2_loses(monkeypatch):
     assert fit.J_w.shape == (len(fit.points), len(fit.theta))
 
 
+def test_the_weaker_prior_runs_only_where_the_stronger_leaves_held_out_error(monkeypatch):
+    """joint.PRIOR_WEIGHTS: stage 2 runs at the next, weaker prior only while the last run predicts its held-out
+    groups worse than STAGE1_ENOUGH_HELD_OUT; with every run forced, the band is linearized at the chosen
+    candidate's curve, not at the last run's."""
+    from solenoid_fmu.identification import joint
+
+    geom = load_geometry()
+    lit = load_material()
+    weak = f"stage 2 (prior {joint.PRIOR_WEIGHTS[1]:g})"
+    fit = joint.identify_joint(_points(_hill_steel(), 0.002), geom, lit, 3.0, max_nfev=3)
+    assert (weak in fit.candidates) == (fit.candidates["stage 2 (prior 1)"]["rms_out"] > joint.STAGE1_ENOUGH_HELD_OUT)
+    monkeypatch.setattr(joint, "STAGE1_ENOUGH_HELD_OUT", -1.0)
+    fit = joint.identify_joint(_points(_hill_steel(), 0.002), geom, lit, 3.0, max_nfev=3)
+    assert list(fit.candidates) == ["stage 1", "stage 2 (prior 1)", weak]
+    assert fit.chosen == min(fit.candidates, key=lambda k: fit.candidates[k]["rms_out"])
+    want = fit.theta_stage1 if fit.chosen == "stage 1" else fit.candidates[fit.chosen]["theta"]
+    np.testing.assert_array_equal(fit.theta, want)
+
+
 def test_grid_tabulated_curve_sensitivities_match_the_curves_themselves():
     """point_model._GridTable: sum_q w_q (f_plus - f_minus)(B_q) / 2h from the tabulated difference against the
     perturbed curves evaluated at every B_q (what the Jacobian did before), for nu(B^2) and the energy density."""

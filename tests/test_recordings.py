@@ -433,7 +433,9 @@ _name = st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,12}", fullmatch=True)
 def recordings(draw):
     n = draw(st.integers(min_value=2, max_value=40))
     t0 = draw(st.floats(min_value=-1e3, max_value=1e3))
-    steps = draw(st.lists(st.floats(min_value=1e-6, max_value=10.0), min_size=n - 1, max_size=n - 1))
+    # uneven sampling, but no gap the reader refuses (> 1000 sample periods: an acquisition that stopped)
+    base = draw(st.floats(min_value=1e-6, max_value=1.0))
+    steps = base * np.array(draw(st.lists(st.floats(min_value=0.1, max_value=10.0), min_size=n - 1, max_size=n - 1)))
     time_s = t0 + np.concatenate(([0.0], np.cumsum(steps)))
     if np.any(np.diff(time_s) <= 0):  # rounding at large |t0| can merge steps; keep strictly increasing
         time_s = t0 + np.arange(n, dtype=float)

@@ -22,6 +22,7 @@ from .point_pool import default_workers
 from .prediction import prediction_band, prediction_warnings
 from .report import write_report
 from .result import IdentificationResult
+from .virgin_side import on_virgin_side
 
 __all__ = ["identify_from_recordings"]
 
@@ -135,7 +136,8 @@ def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size
     remanence = max((float(np.max(d["half_width_Wb"], initial=0.0)) for d in details["strokes"].values()),
                     default=0.0)
     hpts, hnotes = hold_points(hold_recs, details["camp"], details["heated"], 2.0 * remanence)
-    fpts, fnotes = fpts + hpts, fnotes + hnotes
+    fpts, shift_note = on_virgin_side(fpts + hpts, details["strokes"], details["G_eddy_S"])
+    fnotes = fnotes + hnotes + ([shift_note] if shift_note else [])
     fit = identify_joint(pts + fpts, geom, start, mesh_size, progress=cb, **kwargs)
     cc = details["strokes"][max(details["strokes"], key=lambda k: len(groups_of(flux)[k]))]["cc"]
     res = result_from_joint(fit, start, mesh_size, {

@@ -19,6 +19,8 @@ Every recording that carries the steel's magnetization is used, not one stroke:
   :func:`hold_points`): where the current holds still, dPsi/dt = 0, so there is no eddy current and the
   current is the magnetizing one; Psi by eq. 4 up to the hold and, with a force column, the holding force
   give static points, often at currents above the flux recordings' peaks (a ramp to the rated current).
+- **Hysteresis**: force strokes and holds sit on the virgin ascent; :mod:`.virgin_side` takes their points to
+  the branch mean's current.
 - **Coil heating** (:func:`resistance_choice`): one heating rate ``kappa`` for the campaign's coil, from
   the ``flux`` recordings and the other current-driven recordings at a fixed stroke (``ramp``,
   ``eddy``). Unipolar triangles of a hysteretic steel do not close (the remanence is unknown), so in
@@ -362,7 +364,8 @@ def hold_points(recs, camp=None, heated: bool = False, remanence_Wb: float = 0.0
 
     At a settled hold (:func:`~solenoid_fmu.measure.hold_segments`) dPsi/dt = 0: no eddy current, the
     current is the magnetizing one and the point lies at the tip of the recording's loop (on the
-    commutation curve). Psi [Wb]: the mean of eq. 4 over the hold, integrated from the rest before it
+    commutation curve; on a hysteretic steel on the virgin ascent, :mod:`.virgin_side`). Psi [Wb]: the
+    mean of eq. 4 over the hold, integrated from the rest before it
     (with the campaign's R(t) track where the coil heats, ``heated``, else the header's R), with the
     resistance the hold itself shows (U = R i there: a slope of Psi over the hold is the error of the R
     used, and corrects Psi by that error times the charge int i dt), 1-sigma from :data:`PSI_FLOOR_REL`,
