@@ -35,8 +35,9 @@ SHIFT_MIN_LOOP_REL = 10 * PSI_FLOOR_REL
 def virgin_shift(strokes: dict, i_A, G_S: float = 0.0) -> np.ndarray:
     """How far [A] the virgin ascent lies above the branch mean in current, at currents ``i_A`` [A].
 
-    Each flux recording's loops (``strokes``: :func:`flux_points`' per-stroke details; the recordings whose
-    highest peak reaches :data:`MAJOR_LOOP_SHARE` of their stroke's, as in :func:`corrected_curve`, with
+    Each flux recording's loops (``strokes``: the per-stroke details of
+    :func:`~.campaign_data.flux_points`; the recordings whose highest peak reaches :data:`MAJOR_LOOP_SHARE` of
+    their stroke's, as in :func:`~.campaign_data.corrected_curve`, with
     the eddy current ``G_S dPsi/dt`` taken out) give the distance in flux between the first ascent and
     the branch mean; over the mean's slope dPsi/di it is a current, ``h``. A recording counts only where its
     loop is hysteresis, judged between :data:`SHIFT_FROM` and :data:`SHIFT_TIP` of its highest
