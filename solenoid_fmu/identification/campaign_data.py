@@ -60,7 +60,7 @@ from .measured import force_stroke_curve, force_stroke_passes, friction_offset, 
 __all__ = ["MeasuredPoint", "PSI_FLOOR_REL", "FORCE_FLOOR_REL", "LOOP_ASYMMETRY", "FORCE_POSITIONS",
            "flux_points", "flux_sigma", "force_points", "hold_points", "HOLD_KINDS", "eddy_split", "resistance_choice",
            "KAPPA_SIGNIFICANT", "EDDY_RATE_SPREAD", "LOOP_NEAR_ORIGIN", "HEADER_OFF_SIGMAS", "MAJOR_LOOP_SHARE",
-           "corrected_curve", "hysteresis_half_width", "virgin_and_top"]
+           "corrected_curve", "corrected_curve_of", "hysteresis_half_width", "virgin_and_top"]
 
 #: Relative 1-sigma floor of a measured flux point (noise, offsets, the resistance's uncertainty).
 PSI_FLOOR_REL = 2e-3
@@ -267,13 +267,19 @@ def _track_sigma_rel(cc, camp) -> float:
 
 def corrected_curve(cc, G_S: float, n: int = 101) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Commutation curve (i [A], Psi [Wb]) and rate-independent loop half-width [Wb] of ``cc``'s
-    branches with the eddy current ``G dPsi/dt`` taken out of the current.
+    branches with the eddy current ``G dPsi/dt`` taken out of the current: :func:`corrected_curve_of`
+    its flux results ``cc.results``."""
+    return corrected_curve_of(cc.results, G_S, n)
+
+
+def corrected_curve_of(results, G_S: float, n: int = 101) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`corrected_curve` of flux results (each with ``psi_Wb``, ``time_s`` and ``branches``).
 
     Per recording the mean of its first ascent and the descent from its highest peak
     (:func:`virgin_and_top`), averaged over the recordings whose highest peak reaches
-    :data:`MAJOR_LOOP_SHARE` of the stroke's highest."""
+    :data:`MAJOR_LOOP_SHARE` of the highest."""
     pairs = []
-    for res in cc.results:
+    for res in results:
         rate = np.gradient(res.psi_Wb, res.time_s)
         pairs.append([dataclasses.replace(br, i_A=br.i_A - G_S * rate[br.start:br.stop]) for br in res.branches])
     top = max(b.peak_A for br in pairs for b in br)

@@ -255,17 +255,17 @@ def _fit(pm: PointModel, points, meas, sig, groups, start_curve, max_nfev: int, 
     cands = {}
     curve1 = _stage1(res, jac, pm, start_curve, max_nfev, groups, cands)
     enough = float(np.sqrt(np.mean(cands["stage 1"]["r_out"] ** 2))) <= STAGE1_ENOUGH_HELD_OUT
-    model, v1, J_last = _stage2(res, jac, pm, curve1, max_nfev, groups, cands, run=not enough)
+    model, v1, J_stage1 = _stage2(res, jac, pm, curve1, max_nfev, groups, cands, run=not enough)
     theta1 = node_theta(v1)
     for c in cands.values():
         c["rms_in"] = float(np.sqrt(np.mean(c["r"] ** 2)))
         c["rms_out"] = float(np.sqrt(np.mean(c["r_out"] ** 2)))
     best = min(cands, key=lambda k: cands[k]["rms_out"])
-    theta_final, J_final = J_last
-    if best == "stage 1" and not enough:  # stage 2 ran and lost: the band belongs to stage 1's curve
-        theta_final, J_final = theta1, jac(v1) @ node_jacobian(len(model.H_nodes))
-    elif best != "stage 1":  # the band belongs to the chosen prior's curve, not the last one run
+    if best != "stage 1":  # the band is linearized at the chosen curve (not the last stage-2 run)
         theta_final, J_final = cands[best]["theta"], cands[best]["J_w"]
+    else:  # stage 1's curve in the node model (stage 2 not run, or run and lost)
+        theta_final = theta1
+        J_final = J_stage1 if J_stage1 is not None else jac(v1) @ node_jacobian(len(model.H_nodes))
     return JointFit(curve=cands[best]["curve"], chosen=best, candidates=cands, model=with_peak_of(model, theta_final),
                     theta=theta_final,
                     J_w=J_final, theta_stage1=theta1, pred_start=pred_start, pred=cands[best]["pred"],
@@ -296,9 +296,10 @@ def _stage1(res, jac, pm: PointModel, start_curve, max_nfev: int, groups: np.nda
 
 def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray, cands: dict, run: bool = True):
     """Stage 2 of :func:`identify_joint`: the node values, once per prior weight of :data:`PRIOR_WEIGHTS`,
-    each run from the one before; adds their candidates to ``cands``. Returns the node model, stage 1's
-    node values and (parameters, weighted Jacobian) of the last run. With ``run`` False no run and no
-    candidate: the node model at stage 1's curve and its Jacobian there (the uncertainty of B needs them)."""
+    each run from the one before, until one predicts its held-out groups within :data:`STAGE1_ENOUGH_HELD_OUT`;
+    adds their candidates (with ``theta`` and the weighted Jacobian ``J_w`` there) to ``cands``. Returns the
+    node model, stage 1's node values and, with ``run`` False (no run, no candidate), the weighted Jacobian at
+    stage 1's curve in the node model (the uncertainty of B needs it), else None."""
     # stage 2, in node values v = (ln chi at the nodes, tail slope): each parameter acts locally, the
     # unimodal projection is an isotonic fit of v itself, the prior a second difference of v
     model, theta1 = fit_to_curve(curve1, H_nodes=stage2_nodes(curve1))
@@ -314,7 +315,7 @@ def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray,
     D = node_prior(model.H_nodes)
     prior0 = D @ v1
     v_start = v1
-    J_last = None if run else (node_theta(v1), jac(v1) @ node_jacobian(m))
+    J_stage1 = None if run else jac(v1) @ node_jacobian(m)
 
     for w in PRIOR_WEIGHTS if run else ():
         def residual(v, w=w):
@@ -328,12 +329,11 @@ def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray,
         r2 = res(st2.x)
         J2 = jac(st2.x)
         theta2 = node_theta(st2.x)
-        J_last = (theta2, J2 @ node_jacobian(m))
         r_out = held_out_residuals(J2, r2, groups, w * D, w * (D @ st2.x - prior0), st2.x, project)
         cands[f"stage 2 (prior {w:g})"] = {
             "curve": model.curve(theta2), "r": r2, "r_out": r_out, "pred": pm.values(st2.x), "theta": theta2,
-            "J_w": J_last[1], "status": st2.message}
+            "J_w": J2 @ node_jacobian(m), "status": st2.message}
         v_start = st2.x
         if np.sqrt(np.mean(r_out**2)) <= STAGE1_ENOUGH_HELD_OUT:
             break  # every held-out group predicted within its uncertainty: a weaker prior would fit noise
-    return model, v1, J_last
+    return model, v1, J_stage1

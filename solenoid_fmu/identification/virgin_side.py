@@ -10,11 +10,10 @@ points by that much. Units: SI (A, Wb, Wb/s, S).
 from __future__ import annotations
 
 import dataclasses
-from types import SimpleNamespace
 
 import numpy as np
 
-from .campaign_data import MAJOR_LOOP_SHARE, PSI_FLOOR_REL, MeasuredPoint, corrected_curve
+from .campaign_data import MAJOR_LOOP_SHARE, PSI_FLOOR_REL, MeasuredPoint, corrected_curve_of
 
 __all__ = ["virgin_shift", "on_virgin_side", "SHIFT_FROM", "SHIFT_TIP", "SHIFT_MIN_LOOP_REL"]
 
@@ -37,7 +36,7 @@ def virgin_shift(strokes: dict, i_A, G_S: float = 0.0) -> np.ndarray:
 
     Each flux recording's loops (``strokes``: the per-stroke details of
     :func:`~.campaign_data.flux_points`; the recordings whose highest peak reaches :data:`MAJOR_LOOP_SHARE` of
-    their stroke's, as in :func:`~.campaign_data.corrected_curve`, with
+    their stroke's, as in :func:`~.campaign_data.corrected_curve_of`, with
     the eddy current ``G_S dPsi/dt`` taken out) give the distance in flux between the first ascent and
     the branch mean; over the mean's slope dPsi/di it is a current, ``h``. A recording counts only where its
     loop is hysteresis, judged between :data:`SHIFT_FROM` and :data:`SHIFT_TIP` of its highest
@@ -58,7 +57,7 @@ def virgin_shift(strokes: dict, i_A, G_S: float = 0.0) -> np.ndarray:
         for res in results:
             if max((b.peak_A for b in res.branches), default=0.0) < MAJOR_LOOP_SHARE * top:
                 continue
-            com_i, com_psi, half = corrected_curve(SimpleNamespace(results=[res]), G_S)
+            com_i, com_psi, half = corrected_curve_of([res], G_S)
             if com_i.size < 3:
                 continue
             h = half / np.maximum(np.gradient(com_psi, com_i), SHIFT_SLOPE_FLOOR)
