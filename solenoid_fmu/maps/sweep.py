@@ -26,6 +26,7 @@ from .._version import __version__
 from ..errors import MapsError, SolenoidError
 from ..field import sweep_currents
 from .invert import invert_maps
+from .refine import refine_tables, refined_positions
 from .tables import CharacteristicMaps
 
 __all__ = [
@@ -209,6 +210,7 @@ def build_maps(
     sweep: Callable | None = None,
     name: str | None = None,
     npsi: int | None = None,
+    refine_x: int = 1,
 ) -> CharacteristicMaps:
     """Sweep the FEM over (i, x) and build the characteristic maps (paper section 5, eqs. 2-3).
 
@@ -246,6 +248,10 @@ def build_maps(
         Map name stored in the metadata; default the geometry's name.
     npsi : int, optional
         Flux-grid size (see :func:`solenoid_fmu.maps.invert.invert_maps`).
+    refine_x : int
+        Map columns per FEM interval in x (1: the FEM positions alone); ``r > 1`` puts ``r - 1`` columns into each
+        interval by a cubic spline in x at fixed flux (:mod:`solenoid_fmu.maps.refine`), named in the
+        provenance's ``solver.x_refined``.
 
     Returns
     -------
@@ -257,6 +263,7 @@ def build_maps(
         Bad grids, a failed FEM task (naming x), non-monotone Psi(i) (naming x and i).
     """
     x_m, i_A = _checked_grids(geometry, x_m, i_A, mesh_size)
+    refined_positions(x_m, refine_x)  # a bad factor fails before the FEM runs
     sweep = sweep if sweep is not None else _default_sweep()
     own_executor = executor is None
     if own_executor:
@@ -269,8 +276,20 @@ def build_maps(
         if own_executor:
             executor.shutdown(wait=True, cancel_futures=True)
     solver = _solver_record(sweep, executor, mesh_size, time.perf_counter() - t0, x_m, i_A, newton, recovered)
+    x_m, psi, force, stress = _refined(solver, x_m, i_A, psi, force, stress, refine_x)
     metadata = _metadata(geometry, material, name, mesh_size, solver)
     return invert_maps(x_m, i_A, psi, force, stress, metadata=metadata, npsi=npsi)
+
+
+def _refined(solver: dict, x_m, i_A, psi, force, stress, refine_x: int) -> tuple:
+    """The FEM tables with ``refine_x - 1`` columns in each interval (:func:`refine_tables`), their method in
+    ``solver["x_refined"]``; as given for ``refine_x == 1``."""
+    if refine_x == 1:
+        return x_m, psi, force, stress
+    solver["x_refined"] = {"factor": int(refine_x), "fem_positions_mm": [float(x) * 1e3 for x in x_m],
+                           "method": "not-a-knot cubic spline in x at fixed flux linkage of the FEM columns' "
+                                     "i(Psi), F(Psi) and Maxwell-stress force, inverted at the sweep's currents"}
+    return refine_tables(x_m, i_A, psi, force, stress, refine_x)
 
 
 def _solver_record(sweep, executor, mesh_size, wall_s: float, x_m, i_A, newton, recovered) -> dict:
