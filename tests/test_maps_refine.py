@@ -15,6 +15,7 @@ import pytest
 from test_maps import FakeGeometry, FakeMaterial, analytic_sweep, exact_force, exact_psi
 
 from solenoid_fmu import maps as M
+from solenoid_fmu.cli import main as cli_main
 from solenoid_fmu.errors import MapsError
 from solenoid_fmu.maps.refine import refine_tables, refined_positions
 
@@ -136,3 +137,33 @@ def test_on_the_fem_the_inserted_columns_match_direct_solves():
             refined_err.append(np.max(np.abs(fine[:, k] - direct[key])[low]) / scale)
             linear_err.append(np.max(np.abs(linear - direct[key])[low]) / scale)
     assert max(refined_err) < max(linear_err) / 3.0, (refined_err, linear_err)
+
+
+def test_cli_refine_x_puts_columns_between_the_fem_positions(tmp_path, capsys):
+    out = tmp_path / "maps" / "refined"
+    code = cli_main(["maps", "--x-mm", "1:2.5:4", "--i-A", "0:1.5:3", "--mesh-size", "3", "--workers", "1",
+                     "--refine-x", "2", "--quiet", "-o", str(out)])
+    assert code == 0, capsys.readouterr().err
+    maps = M.load_maps(out)
+    np.testing.assert_allclose(maps.x_m, np.linspace(1e-3, 2.5e-3, 7))
+    assert maps.metadata["provenance"]["solver"]["x_refined"]["factor"] == 2
+    assert "7 positions" in capsys.readouterr().out
+
+
+def _maps_cli(tmp_path, *argv):
+    return cli_main(["maps", *argv, "--i-A", "0:1.5:3", "--mesh-size", "3", "--workers", "1", "--quiet",
+                     "-o", str(tmp_path / "m")])
+
+
+def test_cli_refine_x_with_too_few_fem_positions_is_refused_before_the_sweep(tmp_path, capsys):
+    assert _maps_cli(tmp_path, "--x-mm", "1:2:3", "--refine-x", "2") == 1
+    assert "at least 4 FEM positions" in capsys.readouterr().err
+    assert not (tmp_path / "m" / "maps.json").exists()
+
+
+@pytest.mark.parametrize("value", ["9", "0", "two", "1.5"])
+def test_cli_refine_x_outside_1_to_8_is_a_usage_error(tmp_path, capsys, value):
+    with pytest.raises(SystemExit) as info:
+        _maps_cli(tmp_path, "--x-mm", "1:2:5", "--refine-x", value)
+    assert info.value.code == 2
+    assert "--refine-x" in capsys.readouterr().err

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..argtypes import number, process_count
+from ..argtypes import integer, number, process_count
 from ..errors import MapsError
 from ..field import MIN_MESH_SIZE, load_geometry, load_material
 from ..fileio import dir_lock, refuse_overwriting_inputs, require_directory
@@ -19,6 +19,7 @@ from .eddy import with_fitted_eddy
 from .export import DERIVED_FILES, DERIVED_PLOTS, export_combitable2d, export_mat, remove_stale_exports
 from .io import load_maps, name_problem, save_maps
 from .plots import plot_maps
+from .refine import MAX_REFINE_X
 from .sweep import MAX_GRID_POINTS, InlineExecutor, build_maps, process_pool
 
 __all__ = ["add_cli", "parse_range"]
@@ -90,6 +91,9 @@ def _add_maps_cli(subparsers) -> None:
                         "current, 26 currents, denser at low currents)")
     p.add_argument("--mesh-size", metavar="H", type=number(MIN_MESH_SIZE), default=1.0,
                    help="mesh-size factor (default 1.0; larger is coarser)")
+    p.add_argument("--refine-x", metavar="R", type=integer(1, MAX_REFINE_X), default=1,
+                   help="map columns per FEM interval in x: R - 1 more by a cubic spline at fixed flux between the "
+                        "FEM positions (default 1: the FEM positions alone; the model reads the maps linearly in x)")
     p.add_argument("--workers", metavar="N", type=process_count, default=None,
                    help="parallel processes (default: all cores; 1 runs in this process)")
     p.add_argument("-o", "--output", metavar="maps/NAME", help="map directory to write")
@@ -134,7 +138,8 @@ def _maps_run(args) -> int:
         if args.output is not None:
             raise MapsError("use either -o (build a new map) or --from (use an existing one), not both")
         sweep_opts = [o for o, v in (("--geometry", args.geometry), ("--material", args.material),
-                                     ("--x-mm", args.x_mm), ("--i-A", args.i_A), ("--workers", args.workers))
+                                     ("--x-mm", args.x_mm), ("--i-A", args.i_A), ("--workers", args.workers),
+                                     ("--refine-x", None if args.refine_x == 1 else args.refine_x))
                       if v is not None]
         if sweep_opts:
             raise MapsError(f"{', '.join(sweep_opts)} only apply to a new sweep, not with --from")
@@ -161,7 +166,7 @@ def _maps_run(args) -> int:
             executor = process_pool(args.workers)
         try:
             maps = build_maps(geometry, material, x_m=x_m, i_A=i_A, mesh_size=args.mesh_size,
-                              executor=executor, progress=not args.quiet, name=directory.name)
+                              executor=executor, progress=not args.quiet, name=directory.name, refine_x=args.refine_x)
         finally:
             if executor is not None:
                 executor.shutdown()
