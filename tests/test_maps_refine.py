@@ -167,3 +167,12 @@ def test_cli_refine_x_outside_1_to_8_is_a_usage_error(tmp_path, capsys, value):
         _maps_cli(tmp_path, "--x-mm", "1:2:5", "--refine-x", value)
     assert info.value.code == 2
     assert "--refine-x" in capsys.readouterr().err
+
+
+def test_a_fem_column_that_does_not_rise_is_named_before_it_is_refined():
+    x = np.array([1.0, 1.5, 2.0, 2.5]) * 1e-3
+    i_A = np.array([0.0, 0.5, 1.0, 1.5])
+    psi = np.outer([0.0, 0.1, 0.2, 0.3], [1.0, 0.9, 0.8, 0.7])
+    psi[2, 1] = psi[1, 1]  # Psi stalls at x = 1.5 mm between 0.5 and 1 A
+    with pytest.raises(MapsError, match=r"x = 1\.5 mm.*i = 0\.5 A"):
+        refine_tables(x, i_A, psi, psi, psi, 2)

@@ -128,10 +128,7 @@ def invert_maps(
     psi_ix_Wb = np.asarray(psi_ix_Wb, dtype=np.float64)
     force_ix_N = np.asarray(force_ix_N, dtype=np.float64)
     force_stress_ix_N = np.asarray(force_stress_ix_N, dtype=np.float64)
-    problems = _table_problems(x_m, i_A, psi_ix_Wb, force_ix_N, force_stress_ix_N)
-    if problems:
-        raise MapsError(problem_message("FEM tables", problems))
-    _check_monotone(x_m, i_A, psi_ix_Wb)
+    check_fem_tables(x_m, i_A, psi_ix_Wb, force_ix_N, force_stress_ix_N)
     psi_top = float(np.max(psi_ix_Wb[-1]))
     candidates = _NPSI_CANDIDATES if npsi is None else (int(npsi),)
     if npsi is not None and npsi < 2:
@@ -155,6 +152,15 @@ def invert_maps(
         maps, 0.5 * (x_m[1:] + x_m[:-1])
     )
     return dataclasses.replace(maps, metadata=meta)
+
+
+def check_fem_tables(x_m, i_A, psi_ix_Wb, force_ix_N, force_stress_ix_N) -> None:
+    """MapsError naming what makes the FEM tables on the (i, x) grid unusable: shapes, NaN, grids, a Psi(i)
+    column that does not rise strictly (with its x and i)."""
+    problems = _table_problems(x_m, i_A, psi_ix_Wb, force_ix_N, force_stress_ix_N)
+    if problems:
+        raise MapsError(problem_message("FEM tables", problems))
+    _check_monotone(x_m, i_A, psi_ix_Wb)
 
 
 def _table_problems(x_m, i_A, psi, force, stress) -> list[str]:

@@ -35,6 +35,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
 from ..errors import MapsError
+from .invert import check_fem_tables
 
 __all__ = ["MAX_REFINE_X", "SUPPORT_WEIGHT", "refine_tables", "refined_positions", "spline_weights"]
 
@@ -88,10 +89,7 @@ def refine_tables(x_m, i_A, psi_ix_Wb, force_ix_N, stress_ix_N, factor: int) -> 
     if factor == 1:
         return (x_fine, *tables)
     psi, force, stress = tables
-    for t in tables:
-        if t.shape != (i_A.size, x_m.size):
-            raise MapsError(f"refine_tables: a table of shape {t.shape} for {i_A.size} currents x {x_m.size} "
-                            "positions")
+    check_fem_tables(x_m, i_A, psi, force, stress)  # each column is read along its flux: it must rise
     inserted = np.flatnonzero(np.arange(x_fine.size) % factor)
     xi = x_fine[inserted]
     W = spline_weights(x_m, xi)
