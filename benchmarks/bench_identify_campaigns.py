@@ -10,7 +10,8 @@ of F on the prediction grid with whether the identification warned that the data
 the loop started from the identified maps (``tests/test_loop_identified.py``): effects found against the
 truth's, the pooled held-out error of the bare identified model and of the final one, and its wall time;
 where heating is the rig's only effect, also that error with the rig's own heating parameters and the
-exact model's (truth maps without and with the rig's heating): how far the 1/3 cut is within reach.
+exact model's (truth maps without and with the rig's heating): how far the 1/3 cut is within reach; and the
+final residuals' white noise alone (the noise floor no model goes below, ``loop.gates.noise_floor``).
 
 Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N]`` (first N campaigns;
 about 1 min each on 2 cores).
@@ -89,7 +90,8 @@ def main(n: int | None = None) -> list[dict]:
     print()
     print("the loop started from the identified maps (tests/test_loop_identified.py): effects found, pooled held-out "
           "NRMSE of the bare identified model and of the final one")
-    print(f"{'campaign':36s} {'true effects':24s} {'found':24s} {'before':>7s} {'after':>7s} {'ratio':>6s} wall [s]")
+    print(f"{'campaign':36s} {'true effects':24s} {'found':24s} {'before':>7s} {'after':>7s} {'ratio':>6s} wall [s]"
+          f"  noise floor")
     good = 0
     for r in rows:
         lp = r["loop"]
@@ -98,7 +100,7 @@ def main(n: int | None = None) -> list[dict]:
         good += ok
         print(f"{r['campaign']:36s} {','.join(r['want']) or '-':24s} {','.join(lp['found']) or '-':24s} "
               f"{lp['before'] * 100:6.2f}% {lp['after'] * 100:6.2f}% {ratio:6.2f} {lp['wall_s']:7.1f}"
-              f"{'' if ok else '  short of the goal'}")
+              f"  {lp['noise_floor'] * 100:10.2f}%{'' if ok else '  short of the goal'}")
         if "perfect_before" in lp:
             print(f"{'':36s} heating alone: with the rig's own C_th, R_th {lp['true_heating'] * 100:.2f} %; the exact "
                   f"model (truth maps + the rig's heating) {lp['perfect_before'] * 100:.2f}% -> "

@@ -27,6 +27,7 @@ from truthsteels import truth_dir
 
 from solenoid_fmu.field import load_geometry, load_material
 from solenoid_fmu.loop import improve_tables, split_recordings, with_effects
+from solenoid_fmu.loop.gates import noise_floor
 from solenoid_fmu.loop.improvement import _cases, _error
 from solenoid_fmu.loop.residuals import FluxCache, recording_name
 from solenoid_fmu.maps import save_maps
@@ -66,7 +67,8 @@ def _heating_section(heating: dict, alpha_per_K: float) -> dict:
 def loop_on_identified_recordings(folder, curve, work, truth_tables=None) -> dict:
     """The pipeline's maps + G_eddy -> loop on a campaign folder and an identified curve, in memory
     (``work``: a folder for the maps the loop reads); what it found and the pooled held-out error of the
-    bare identified model (no effect, no eddy term) and of the final one.
+    bare identified model (no effect, no eddy term) and of the final one, and the final residuals' white noise
+    alone (``noise_floor``, :func:`solenoid_fmu.loop.gates.noise_floor`: what no model can go below).
 
     Where the rig's only effect is coil heating and ``truth_tables`` (the truth's maps) are given, also the
     reference a perfect loop is judged by: ``true_heating``, the identified maps with the rig's own C_th and
@@ -86,7 +88,8 @@ def loop_on_identified_recordings(folder, curve, work, truth_tables=None) -> dic
     out = {"found": effects_found([s.effect for s in res.steps if s.accepted], eddy),
            "tried": [(s.effect, s.accepted) for s in res.steps],
            "eddy_r2": None if eddy is None else eddy.r2,
-           "before": math.sqrt(_error(bare, names)), "after": math.sqrt(_error(res.cases_after, names))}
+           "before": math.sqrt(_error(bare, names)), "after": math.sqrt(_error(res.cases_after, names)),
+           "noise_floor": math.sqrt(noise_floor(res.cases_after, names))}
     effects = json.loads((folder / "truth.json").read_text())["effects"]
     if truth_tables is not None and [k for k, v in effects.items() if v and k != "noise"] == ["heating"]:
         def err(tables):
@@ -144,3 +147,4 @@ def test_heating_alone_is_fitted_as_well_as_the_rigs_own_and_a_perfect_model_mis
     assert out["after"] <= 1.05 * out["true_heating"], msg
     assert out["perfect_after"] < out["perfect_before"], msg
     assert out["perfect_after"] > CUT * out["perfect_before"], msg
+    assert out["noise_floor"] < out["perfect_after"], msg  # the exact model's error is more than noise

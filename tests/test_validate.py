@@ -242,3 +242,38 @@ def test_a_missing_fmu_and_no_recordings_are_clear_errors(setup, tmp_path):
     with pytest.raises(ValidationError, match="at least one recording"):
         validate(setup["good"], [])
     assert issubclass(ValidationError, SolenoidError)
+
+
+# -- the residual's white noise (metrics.white_noise_rms) ---------------------------------------------------------
+def _noisy(sigma, n=5000, seed=7):
+    t = np.linspace(0.0, 1.0, n)
+    smooth = 0.3 * np.sin(2 * np.pi * 3 * t) + 0.1 * t  # a model error, smooth at the sample rate
+    return smooth, smooth + np.random.default_rng(seed).normal(0.0, sigma, n)
+
+
+def test_white_noise_rms_finds_the_noise_under_a_smooth_error():
+    from solenoid_fmu.loop.metrics import white_noise_rms
+
+    smooth, noisy = _noisy(0.05)
+    assert white_noise_rms(noisy) == pytest.approx(0.05, rel=0.05)
+    assert white_noise_rms(smooth) < 1e-4 * 0.05  # no noise: the smooth error is not counted
+
+
+def test_white_noise_rms_is_not_moved_by_steps_and_spikes():
+    from solenoid_fmu.loop.metrics import white_noise_rms
+
+    _, noisy = _noisy(0.05)
+    jumpy = noisy.copy()
+    jumpy[2500:] += 2.0  # a step forty sigma high
+    jumpy[[100, 900, 4000]] += 1.0  # three spikes
+    assert white_noise_rms(jumpy) == pytest.approx(white_noise_rms(noisy), rel=0.02)
+
+
+def test_white_noise_rms_needs_three_finite_samples_and_is_reported_per_signal():
+    from solenoid_fmu.loop.metrics import signal_metrics, white_noise_rms
+
+    assert white_noise_rms([1.0, np.nan, 2.0]) is None
+    smooth, noisy = _noisy(0.02)
+    m = signal_metrics(noisy, smooth)
+    assert m["noise_rms"] == pytest.approx(0.02, rel=0.05)
+    assert m["noise_rms"] == pytest.approx(m["rms"], rel=0.05)  # the residual is all noise here

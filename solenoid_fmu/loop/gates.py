@@ -21,13 +21,13 @@ from ..fmu import simulate_model
 from ..measure import Recording, flux_linkage
 from .diagnosis import DEFAULT_MIN_NRMS, diagnose
 from .effects import fit_eddy_ladder, fit_friction, fit_heating, fit_hysteresis, g_eddy_source
-from .metrics import full_scales, nrmse_fs
+from .metrics import full_scales, nrmse_fs, white_noise_rms
 from .residuals import cases_from_recordings, recording_name
 from .tables import ADDABLE, ImproveError, with_effects
 
 __all__ = ["TRY_THRESHOLD", "FEW_PARAMETERS", "FLUX_FITTED", "Step", "LoopRun", "simulate_cases", "gate_error",
            "fit_effect", "add_measured_heating", "pick_effect", "try_effect", "judged_on_all", "try_score",
-           "kept_effects", "refit_after_heating"]
+           "kept_effects", "refit_after_heating", "noise_floor"]
 
 #: Diagnosis score from which an addable effect is *tried* (fitted and judged on the validation
 #: recordings) even when it does not clear the verdict threshold: the held-out gate decides.
@@ -93,6 +93,20 @@ def gate_error(cases, names) -> float:
             rms = float(np.sqrt(np.mean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any() else None
             v = nrmse_fs(rms, fs[(c.kind, sig)])
             vals.append(1.0 if v is None else v * v)
+    return float(np.mean(vals)) if vals else 0.0
+
+
+def noise_floor(cases, names) -> float:
+    """:func:`gate_error` of the residuals' white noise alone (:func:`~solenoid_fmu.loop.metrics.white_noise_rms`):
+    the mean squared full-scale NRMSE that no model of these recordings can go below."""
+    fs = full_scales(cases)
+    vals = []
+    for c in cases:
+        if c.name not in names:
+            continue
+        for sig, r in c.residuals.items():
+            v = nrmse_fs(white_noise_rms(r), fs[(c.kind, sig)])
+            vals.append(0.0 if v is None else v * v)
     return float(np.mean(vals)) if vals else 0.0
 
 

@@ -18,6 +18,10 @@ Metrics per recording and signal (:func:`signal_metrics`), with ``e = measured -
   at 1 keeps one broken recording from outweighing the others. The improve gate
   (:func:`solenoid_fmu.loop.gates.gate_error`) and the reports' mean errors use it.
 
+* ``noise_rms`` = the residual's white noise (:func:`white_noise_rms`), in the signal's unit: the part of
+  ``rms`` that no model of the signal can remove (the sensors' noise, and the input channel's noise as the
+  model passes it on). Reported beside the error, not subtracted from it.
+
 Samples where the measured or simulated value is not finite are left out and counted
 (``n_excluded``); a simulation that is not finite anywhere gives ``None`` metrics.
 """
@@ -83,6 +87,21 @@ def nrmse_fs(rms, full_scale: float):
 
 
 
+def white_noise_rms(residual) -> float | None:
+    """The white noise in a residual [its unit]: ``1.4826 MAD(diff2(e)) / sqrt(6)`` over its finite samples.
+
+    Second differences ``e[k+1] - 2 e[k] + e[k-1]`` cancel what changes smoothly from one sample to the next
+    (a model's error, offsets, slopes) and multiply the variance of white noise by 6; the median absolute
+    deviation keeps the few large ones of a step or a spike from counting. None with fewer than 3 samples.
+    """
+    e = np.asarray(residual, dtype=float)
+    e = e[np.isfinite(e)]
+    if e.size < 3:
+        return None
+    d = np.diff(e, 2)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
+
+
 def signal_metrics(measured, simulated) -> dict:
     """Error metrics of a simulated signal against the measured one.
 
@@ -98,7 +117,7 @@ def signal_metrics(measured, simulated) -> dict:
         both in the signal's unit; ``nrmse`` = rms / (max(measured) - min(measured)) [1], ``None``
         when the measured range is zero (a constant signal gives no scale); ``n`` samples used and
         ``n_excluded`` samples left out because either value is not finite. All metrics are
-        ``None`` when no sample is finite.
+        ``None`` when no sample is finite; ``noise_rms`` the residual's white noise (:func:`white_noise_rms`).
 
     Raises
     ------
@@ -115,7 +134,7 @@ def signal_metrics(measured, simulated) -> dict:
         raise ValidationError("no samples to compare (empty signals)")
     ok = np.isfinite(m) & np.isfinite(s)
     n = int(np.count_nonzero(ok))
-    out = {"rms": None, "max": None, "nrmse": None, "n": n, "n_excluded": int(m.size - n)}
+    out = {"rms": None, "max": None, "nrmse": None, "noise_rms": None, "n": n, "n_excluded": int(m.size - n)}
     if n == 0:
         return out
     e = m[ok] - s[ok]
@@ -124,6 +143,7 @@ def signal_metrics(measured, simulated) -> dict:
     out["rms"] = rms
     out["max"] = float(np.max(np.abs(e)))
     out["nrmse"] = rms / span if span > 0 else None
+    out["noise_rms"] = white_noise_rms(e)
     return out
 
 
