@@ -83,30 +83,30 @@ def gate_error(cases, names) -> float:
     at 1 (:func:`solenoid_fmu.loop.metrics.full_scales`, computed over all ``cases``), so that no
     single recording whose signal hardly changes can dominate the gate.
     """
-    fs = full_scales(cases)
-    vals = []
-    for c in cases:
-        if c.name not in names:
-            continue
-        for sig, r in c.residuals.items():
-            r = np.asarray(r, dtype=float)
-            rms = float(np.sqrt(np.mean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any() else None
-            v = nrmse_fs(rms, fs[(c.kind, sig)])
-            vals.append(1.0 if v is None else v * v)
-    return float(np.mean(vals)) if vals else 0.0
+    def rms(r):
+        r = np.asarray(r, dtype=float)
+        return float(np.sqrt(np.mean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any() else None
+
+    return _pooled(cases, names, rms, missing=1.0)
 
 
 def noise_floor(cases, names) -> float:
     """:func:`gate_error` of the residuals' white noise alone (:func:`~solenoid_fmu.loop.metrics.white_noise_rms`):
     the mean squared full-scale NRMSE that no model of these recordings can go below."""
+    return _pooled(cases, names, white_noise_rms, missing=0.0)
+
+
+def _pooled(cases, names, measure, missing: float) -> float:
+    """Mean over the recordings in ``names`` and their signals of ``(measure(residual) / full scale)^2``, each
+    capped at 1 (:func:`~solenoid_fmu.loop.metrics.nrmse_fs`); ``missing`` where ``measure`` gives None."""
     fs = full_scales(cases)
     vals = []
     for c in cases:
         if c.name not in names:
             continue
         for sig, r in c.residuals.items():
-            v = nrmse_fs(white_noise_rms(r), fs[(c.kind, sig)])
-            vals.append(0.0 if v is None else v * v)
+            v = nrmse_fs(measure(r), fs[(c.kind, sig)])
+            vals.append(missing if v is None else v * v)
     return float(np.mean(vals)) if vals else 0.0
 
 
