@@ -53,9 +53,9 @@ from .argtypes import process_count
 from .errors import SolenoidError
 from .field import load_geometry
 from .fileio import atomic_write_text, dir_lock, jsonable, refuse_overwriting_inputs, require_directory
-from .fmu import build_fmu
+from .fmu import build_fmu, start_excess_K
 from .identification import identify_from_recordings
-from .loop import effects_summary_lines, heating_corrected, improve
+from .loop import FluxCache, ambient_resistance, effects_summary_lines, heating_corrected, improve
 from .maps import (
     InlineExecutor,
     build_maps,
@@ -370,16 +370,19 @@ def _second_round_heating(res, ident) -> dict | None:
 
 
 def _heating_corrected_campaign(run: _Run, recs, heating: dict):
-    """The recordings with the voltage of :data:`HEATING_CORRECTED_KINDS` corrected for ``heating``, in memory
-    (each corrected one also written to ``heating-corrected/`` for the user: nothing reads it back)."""
+    """The recordings with the voltage of :data:`HEATING_CORRECTED_KINDS` corrected for ``heating``, in memory,
+    each from its start above ambient (the campaign's coldest resistance, as the loop starts the model's runs;
+    each corrected one also written to ``heating-corrected/`` for the user: nothing reads it back)."""
     corr_dir = run.out / "heating-corrected"
     corr_dir.mkdir(parents=True, exist_ok=True)
+    ambient = ambient_resistance(recs, FluxCache())
     out_recs = []
     for r in recs:
         if r.kind not in HEATING_CORRECTED_KINDS:
             out_recs.append(r)
             continue
-        corrected = heating_corrected(r, heating)
+        corrected = heating_corrected(r, heating, T_start_excess_K=start_excess_K(r.coil_resistance_ohm, ambient,
+                                                                                 heating["alpha_per_K"]))
         path = write_recording(corr_dir / r.path.name, corrected)
         out_recs.append(dataclasses.replace(corrected, path=path))
     return out_recs

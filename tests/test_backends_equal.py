@@ -178,7 +178,7 @@ def scenarios(draw):
         params.update(hyst_gain=draw(_fraction(0.0, 3.0)), friction_N=draw(_fraction(0.0, 5.0)))
     if "heating" in MAP_EFFECTS[seed]:
         params.update(C_th_J_per_K=draw(_fraction(0.05, 5.0)), R_th_K_per_W=draw(_fraction(1.0, 100.0)),
-                      alpha_per_K=draw(_fraction(0.0, 0.01)))
+                      alpha_per_K=draw(_fraction(0.0, 0.01)), T_start_excess_K=draw(_fraction(-50.0, 160.0)))
     if "friction" in MAP_EFFECTS[seed]:
         params["presliding_m"] = draw(_fraction(1e-6, 1e-4))
     u0 = draw(_fraction(-1.5, 1.5))

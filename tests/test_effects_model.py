@@ -81,6 +81,47 @@ def test_heating_matches_rig_truth(tmp_path):
     assert abs(out_off["i_A"][-1] / truth.current_A[-1] - 1.0) > 5e-3
 
 
+def test_a_coil_that_starts_warm_cools_as_the_rig_truth(tmp_path):
+    """T_start_excess_K: the coil starts above ambient and cools through R_th while it heats; against the rig's
+    truth started at that temperature (its own integration), and without the start excess the model misses."""
+    heat = {"C_th_J_per_K": 2.0, "R_th_K_per_W": 5.0, "alpha_per_K": 0.00393}
+    tab = _maps_with_effects(tmp_path, {"heating": heat})
+    exc = _voltage_step(duration=20.0, U=6.0, rate=200.0)
+    cfg = CampaignConfig()
+    excess = 30.0
+    truth = TruthModel(tab, Effects(heating=Heating(C_th_J_per_K=2.0, R_th_K_per_W=5.0)), alpha_per_K=0.00393,
+                       ).simulate(exc, cfg, T_start_C=cfg.ambient_C + excess)
+    t = truth.time_s
+    fall = truth.temperature_C[0] - truth.temperature_C[-1]
+    assert fall > 10.0  # the case cools the coil noticeably although it is driven
+    runs = {}
+    for T0 in (excess, 0.0):
+        model = m.SolenoidModel(tab, {"drive_mode": "voltage", "G_eddy_S": 0.0, "R_ohm": truth.resistance_start_ohm,
+                                      "T_start_excess_K": T0, "h_sub_max_s": 1e-3})
+        runs[T0] = _run(model, t, exc.reference(t), np.full_like(t, 1.5e-3))
+    assert abs(runs[excess]["T_rise_K"][-1] + fall) < 0.01 * fall
+    assert abs(runs[excess]["i_A"][-1] / truth.current_A[-1] - 1.0) < 1e-3
+    assert runs[0.0]["T_rise_K"][-1] > 0.0  # from ambient it would have warmed
+    assert abs(runs[0.0]["i_A"][-1] / truth.current_A[-1] - 1.0) > 0.02
+
+
+@pytest.mark.parametrize("bad", [-60.0, 161.0, float("nan"), float("inf")])
+def test_a_start_excess_out_of_range_is_refused_by_name(tmp_path, bad):
+    tab = _maps_with_effects(tmp_path, {"heating": {"C_th_J_per_K": 2.0}})
+    with pytest.raises(m.ModelInputError, match="T_start_excess_K"):
+        m.SolenoidModel(tab, {"T_start_excess_K": bad})
+
+
+def test_a_start_excess_with_no_resistance_at_ambient_is_refused(tmp_path):
+    tab = _maps_with_effects(tmp_path, {"heating": {"C_th_J_per_K": 2.0}})
+    with pytest.raises(m.ModelInputError, match="no positive resistance at ambient"):
+        m.SolenoidModel(tab, {"alpha_per_K": 0.03, "T_start_excess_K": -40.0})
+    model = m.SolenoidModel(tab, {"T_start_excess_K": 10.0})
+    with pytest.raises(m.ModelInputError, match="no positive resistance at ambient"):
+        model.set_params(alpha_per_K=0.03, T_start_excess_K=-40.0)
+    assert model.params["T_start_excess_K"] == 10.0  # unchanged after the refusal
+
+
 def test_friction_matches_rig_truth_on_stroke(tmp_path):
     tab = _maps_with_effects(tmp_path, {"friction": {"force_N": 2.5, "presliding_m": 2e-5}})
     exc = Excitation("stroke", "force_stroke", "current", 200.0, (0.0, 10.0), (1.0, 1.0),

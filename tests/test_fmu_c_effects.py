@@ -27,6 +27,7 @@ from test_fmu_c import HOST_C, MeInstance, _rel_err, _run_host
 from solenoid_fmu import fmu as F
 from solenoid_fmu.fmu import native as fmu_c
 from solenoid_fmu.fmu.interface import me_variables
+from solenoid_fmu.measure import Recording
 from solenoid_fmu.realtime import model as M
 
 pytestmark = pytest.mark.fmu
@@ -173,6 +174,10 @@ class MeFx(MeInstance):
         return list(dx) + self.fmu.getReal([self.vr[k] for k in OUTS_FX])
 
 
+#: The coil's start above ambient in the pointwise model-exchange test [K] (cools through R_th).
+ME_T_START_EXCESS_K = 7.5
+
+
 def _me_fx_reference(tab, mode, G, on, states, u, x, x0):
     """Paper eqs. (1)-(3) with the effects at the states, with model.py's lookups and play operator;
     the hysteresis and friction memories are those committed at the start (Psi = 0, x = x0)."""
@@ -180,7 +185,8 @@ def _me_fx_reference(tab, mode, G, on, states, u, x, x0):
     psi, ik, T = states[0], list(states[1:3]), states[3]
     nl = 2 if "eddy_ladder" in on else 0
     T = T if "heating" in on else 0.0
-    R = mf.R_OHM * (1.0 + heat["alpha_per_K"] * T) if "heating" in on else mf.R_OHM
+    a = M.heating_alpha(heat["alpha_per_K"], ME_T_START_EXCESS_K)  # the start resistance's coefficient
+    R = mf.R_OHM * (1.0 + a * T) if "heating" in on else mf.R_OHM
     j, w, _ = tab.x_cell(x)
     pm = tab.psi_max_Wb
     p = min(max(psi, -pm), pm)
@@ -201,7 +207,8 @@ def _me_fx_reference(tab, mode, G, on, states, u, x, x0):
         i, U = u, R * u + e
     der = [0.0 if abs(psi) >= pm and e * psi > 0.0 else e]
     der += [(lad["G_S"][k] * e - ik[k]) / lad["tau_s"][k] if k < nl else 0.0 for k in range(2)]
-    der += [(R * i * i - T / heat["R_th_K_per_W"]) / heat["C_th_J_per_K"] if "heating" in on else 0.0]
+    der += [(R * i * i - (T + ME_T_START_EXCESS_K) / heat["R_th_K_per_W"]) / heat["C_th_J_per_K"]
+            if "heating" in on else 0.0]
     return der + [i, U, force, p, e, G * e + sik, ih, T]
 
 
@@ -219,7 +226,7 @@ def test_me_with_effects_derivatives_and_outputs_match(fx_md, fx_unzipped, fx_ta
                               rng.uniform(0.0, 60.0, n)])
     xs = rng.uniform(0.2e-3, 3.4e-3, n)
     us = rng.uniform(-30.0, 30.0, n) if mode == "voltage" else rng.uniform(-2.0, 2.0, n)
-    inst = MeFx(fx_md, fx_unzipped, mode, 0.0, 1e-3, _switches(on), G_eddy_S=G)
+    inst = MeFx(fx_md, fx_unzipped, mode, 0.0, 1e-3, _switches(on), G_eddy_S=G, T_start_excess_K=ME_T_START_EXCESS_K)
     got, ref = [], []
     for st, u, x in zip(states, us, xs, strict=True):
         inst.set_inputs(u, x)
@@ -341,6 +348,23 @@ def test_bad_effect_parameters_and_switches_are_refused(fx_md, fx_unzipped, tmp_
     with pytest.raises(FMICallException):
         inst.fmu.exitInitializationMode()
     assert any("carry no 'hysteresis' effect" in m for s, m in inst.messages)
+    inst.free()
+
+
+@pytest.mark.parametrize(("params", "words"), [
+    ({"T_start_excess_K": 500.0}, "T_start_excess_K must lie in [-50, 160] K"),
+    ({"T_start_excess_K": float("nan")}, "T_start_excess_K must lie in"),
+    ({"alpha_per_K": 0.03, "T_start_excess_K": -40.0}, "no positive resistance at ambient"),
+])
+def test_a_bad_start_temperature_is_refused_by_name(fx_md, fx_unzipped, params, words):
+    """As model.py refuses it (test_effects_model): at initialization, naming the parameter."""
+    inst = Instance(fx_md, fx_unzipped, "warm")
+    inst.fmu.setupExperiment(startTime=0.0)
+    inst.fmu.enterInitializationMode()
+    inst.fmu.setReal([inst.vr[k] for k in params], list(params.values()))
+    with pytest.raises(FMICallException):
+        inst.fmu.exitInitializationMode()
+    assert any(words in m for s, m in inst.messages), inst.messages
     inst.free()
 
 
@@ -498,3 +522,22 @@ def test_null_effects_are_no_effects_in_both_fmus(tmp_path):
     finally:
         inst.free()
     assert psi_state == 2e-3 and der_psi == dpsi != 0.0
+
+
+def test_an_fmu_run_starts_at_the_coil_temperature_the_header_resistance_gives(fx_fmu, fx_tab):
+    """``simulate_recording(..., ambient_R_ohm=)`` sets ``T_start_excess_K`` from the header resistance as
+    ``simulate_model`` does (equal to 1e-9), and the warm start shows: the coil cools (T_rise < 0 at the end of
+    a run at low current), where it would warm from ambient."""
+    t = np.linspace(0.0, 4.0, 801)
+    i = 0.1 * np.sin(np.pi * t / 4.0) ** 2
+    R_amb = mf.R_OHM
+    R_start = R_amb * (1.0 + 0.00393 * 20.0)  # 20 K above ambient
+    rec = Recording("flux", "PS45", {"position_mm": "1.0", "coil_resistance_ohm": repr(R_start)}, t, i,
+                    R_start * i, None, None, {})
+    on = {"heating_on": True, "hysteresis_on": False, "eddy_ladder_on": False, "friction_on": False}
+    warm = F.simulate_recording(fx_fmu, rec, params=on, ambient_R_ohm=R_amb)
+    ref = F.simulate_model(fx_tab, rec, params=on, ambient_R_ohm=R_amb)
+    cold = F.simulate_recording(fx_fmu, rec, params=on)
+    T_warm, T_ref, T_cold = (r.recording.extra["T_rise_K"] for r in (warm, ref, cold))
+    np.testing.assert_allclose(T_warm, T_ref, rtol=1e-9, atol=1e-12)
+    assert T_warm[-1] < -1.0 < 0.0 < T_cold[-1]

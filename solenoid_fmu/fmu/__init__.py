@@ -8,7 +8,14 @@
 from .callbacks import fmi2_callbacks, release_fmi2_callbacks
 from .export import BACKENDS, build_fmu
 from .interface import EFFECT_VARIABLES, MODEL_IDENTIFIER, VARIABLES, FmuVariable, interface_for
-from .simulate import DRIVE_BY_KIND, SimulationResult, simulate_model, simulate_recording
+from .simulate import (
+    DRIVE_BY_KIND,
+    SimulationResult,
+    heating_start,
+    simulate_model,
+    simulate_recording,
+    start_excess_K,
+)
 
 __all__ = [
     "BACKENDS",
@@ -20,8 +27,10 @@ __all__ = [
     "SimulationResult",
     "build_fmu",
     "fmi2_callbacks",
+    "heating_start",
     "interface_for",
     "release_fmi2_callbacks",
     "simulate_model",
     "simulate_recording",
+    "start_excess_K",
 ]

@@ -206,6 +206,9 @@ def model_header() -> str:
 #define DRIVE_CURRENT {int(M.DRIVE_CURRENT)}
 /* Bound of the work of one fmi2DoStep: ceil(h / h_sub_max_s) sub-steps at most (else fmi2Error). */
 #define MAX_SUBSTEPS {_c_double(M.MAX_SUBSTEPS)}
+/* Range of T_start_excess_K [K] (model.py T_START_EXCESS_RANGE_K). */
+#define SOL_T_START_EXCESS_MIN_K {_c_double(M.T_START_EXCESS_RANGE_K[0])}
+#define SOL_T_START_EXCESS_MAX_K {_c_double(M.T_START_EXCESS_RANGE_K[1])}
 
 /* The state vector of model.py (STATE_NAMES, STATE_LAYOUT). */
 #define STATE_LAYOUT {int(STATE_LAYOUT)}

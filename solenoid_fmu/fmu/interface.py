@@ -130,6 +130,10 @@ EFFECT_VARIABLES = (
     FmuVariable("friction_N", "Real", "parameter", "tunable", "N", "sliding friction force [N], >= 0"),
     FmuVariable("presliding_m", "Real", "parameter", "fixed", "m",
                 "presliding displacement of the friction model [m], > 0"),
+    # last: the value references of the variables above stay those of FMUs exported before it
+    FmuVariable("T_start_excess_K", "Real", "parameter", "fixed", "K",
+                "coil temperature above ambient at initialization [K] (heating: the coil cools from it through "
+                "R_th; R_ohm is the resistance at that temperature), -50 .. 160"),
 )
 
 #: (min, max) of the Integer ``drive_mode``: an Integer, not an Enumeration, because libcosim (OSP)

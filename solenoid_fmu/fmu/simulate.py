@@ -15,7 +15,16 @@ import numpy as np
 
 from ..errors import FmuInputError
 from ..measure import Recording, read_recording
-from ..realtime import DRIVE_CURRENT, DRIVE_VOLTAGE, STATE_NAMES, MapTables, ModelError, SolenoidModel, load_tables
+from ..realtime import (
+    DRIVE_CURRENT,
+    DRIVE_VOLTAGE,
+    STATE_NAMES,
+    T_START_EXCESS_RANGE_K,
+    MapTables,
+    ModelError,
+    SolenoidModel,
+    load_tables,
+)
 from .callbacks import fmi2_callbacks, release_fmi2_callbacks
 from .interface import VARIABLES
 
@@ -49,9 +58,31 @@ DRIVE_BY_KIND = {"flux": "current", "force_stroke": "current", "ramp": "current"
 
 
 
+def start_excess_K(R_ohm: float | None, ambient_R_ohm: float | None, alpha_per_K: float) -> float:
+    """The coil's temperature above ambient [K] at the start of a run whose coil resistance is ``R_ohm``
+    [ohm], the coil at ambient having ``ambient_R_ohm``: ``(R / R_amb - 1) / alpha``, within the model's
+    :data:`~solenoid_fmu.realtime.model.T_START_EXCESS_RANGE_K`; 0 when either is unknown or alpha <= 0."""
+    if not R_ohm or not ambient_R_ohm or not alpha_per_K > 0.0:
+        return 0.0
+    lo, hi = T_START_EXCESS_RANGE_K
+    return min(max((R_ohm / ambient_R_ohm - 1.0) / alpha_per_K, lo), hi)
+
+
+def heating_start(tables: MapTables, R_ohm: float | None, ambient_R_ohm: float | None) -> dict:
+    """The model parameters of a run that starts at ``R_ohm`` [ohm] on ``tables``: ``T_start_excess_K`` from the
+    coil's resistance at ambient ``ambient_R_ohm`` [ohm] (:func:`start_excess_K`) where the tables carry coil
+    heating (the coil then cools from it through R_th while it heats); ``{}`` otherwise or without ``ambient_R_ohm``."""
+    heat = tables.effects.heating if tables.effects is not None else None
+    if not heat or ambient_R_ohm is None:
+        return {}
+    alpha = heat.get("alpha_per_K")
+    return {"T_start_excess_K": start_excess_K(R_ohm, ambient_R_ohm,
+                                               tables.coil.alpha_per_K if alpha is None else float(alpha))}
+
+
 def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float | None = None,
                        G_eddy_S: float | None = None, Psi0_Wb: float | None = None,
-                       params: dict | None = None) -> SimulationResult:
+                       params: dict | None = None, ambient_R_ohm: float | None = None) -> SimulationResult:
     """Drive an FMU with fmpy from a recording's measured inputs; return the simulated recording.
 
     Parameters
@@ -61,18 +92,17 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     recording : path-like or solenoid_fmu.measure.Recording
         The measured recording (format v1).
     drive : {"auto", "voltage", "current"}
-        ``auto``: voltage-driven for ``voltage_step``, current-driven for the other kinds
-        (:data:`DRIVE_BY_KIND`).
+        ``auto``: voltage-driven for ``voltage_step``, current-driven for the others (:data:`DRIVE_BY_KIND`).
     R_ohm : float, optional
-        Coil resistance [ohm]; default the recording's header ``coil_resistance_ohm`` (measured
-        before the run), else the FMU's default (20 degC).
+        Coil resistance [ohm]; default the header's ``coil_resistance_ohm``, else the FMU's (20 degC).
     G_eddy_S : float, optional
         Eddy-current conductance [S]; default the FMU's (from the maps).
     Psi0_Wb : float, optional
         Initial flux linkage [Wb]; default the map's flux at the first measured current and gap.
     params : dict, optional
-        Further parameters by name (e.g. effect switches ``heating_on``: False), set before
-        initialization.
+        Further parameters by name (e.g. ``heating_on``: False), set before initialization.
+    ambient_R_ohm : float, optional
+        The coil's resistance at ambient [ohm]: with heating, the run starts above it (:func:`heating_start`).
 
     Returns
     -------
@@ -86,11 +116,10 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
 
     Notes
     -----
-    The simulated sample k+1 is the FMU's output after the step from t_k to t_{k+1}; over that
-    step the input is held at the current of sample k+1 (current drive: the flux follows the
-    current, so the output at t_{k+1} must see i at t_{k+1}) or at the mean of the voltages of
-    samples k and k+1 (voltage drive: the trapezoid that paper eq. 4 integrates), with the gap of
-    sample k+1. Sample 0 is the output after initialization.
+    Simulated sample k+1 is the FMU's output after the step t_k -> t_{k+1}, the input held at the current
+    of sample k+1 (current drive: the output at t_{k+1} must see i at t_{k+1}) or at the mean voltage of
+    samples k and k+1 (voltage drive: the trapezoid eq. 4 integrates), the gap at sample k+1's. Sample 0
+    is the output after initialization.
     """
     import fmpy  # third-party FMI host, loaded only when an FMU runs
     from fmpy.fmi1 import FMICallException
@@ -115,9 +144,10 @@ def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float
     try:
         fmu.instantiate(callbacks=callbacks, loggingOn=True)
         try:
-            if Psi0_Wb is None:
-                Psi0_Wb = load_tables(Path(unzip) / "resources").psi_of_current(float(rec.current_A[0]), float(x[0]))
+            tables = load_tables(Path(unzip) / "resources")
+            Psi0_Wb = tables.psi_of_current(float(rec.current_A[0]), float(x[0])) if Psi0_Wb is None else Psi0_Wb
             reals = {"Psi0_Wb": Psi0_Wb, "R_ohm": R_ohm, "G_eddy_S": G_eddy_S}
+            params = {**heating_start(tables, R_ohm, ambient_R_ohm), **(params or {})}
             in_vr = _initialize(fmu, md, vrs, drive, float(t[0]), reals, params or {}, (float(u[0]), float(x[0])))
             out = _run(fmu, in_vr, [vrs[k] for k in out_names], t, x, u_step)
         except FMICallException as exc:
@@ -232,7 +262,7 @@ def _simulated(rec, drive, u, out, out_names, by: str, messages) -> SimulationRe
 
 
 def simulate_model(tables: MapTables, recording, *, drive: str = "auto", R_ohm: float | None = None,
-                   params: dict | None = None) -> SimulationResult:
+                   params: dict | None = None, ambient_R_ohm: float | None = None) -> SimulationResult:
     """Drive ``model.py`` in this process exactly as :func:`simulate_recording` drives an FMU.
 
     The FMU ships the same ``model.py`` (its agreement with the FMU to 1e-9 is tested), so this is
@@ -243,7 +273,7 @@ def simulate_model(tables: MapTables, recording, *, drive: str = "auto", R_ohm: 
     tables : MapTables
         The maps, with any ``effects`` section in their maps.json meta.
     recording : path-like or Recording
-    drive, R_ohm : see :func:`simulate_recording`
+    drive, R_ohm, ambient_R_ohm : see :func:`simulate_recording`
     params : dict, optional
         Further model parameters (:data:`solenoid_fmu.realtime.model.DEFAULT_PARAMS` keys).
     """
@@ -255,6 +285,7 @@ def simulate_model(tables: MapTables, recording, *, drive: str = "auto", R_ohm: 
     p = {"drive_mode": drive, "Psi0_Wb": tables.psi_of_current(float(rec.current_A[0]), float(x[0]))}
     if R_ohm is not None:
         p["R_ohm"] = R_ohm
+    p.update(heating_start(tables, R_ohm, ambient_R_ohm))
     p.update(params or {})
     try:
         model = SolenoidModel(tables, p)

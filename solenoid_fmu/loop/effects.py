@@ -21,11 +21,8 @@ Each fit returns ``(section, note)``: the maps.json ``effects`` section of the e
     the ladder would be fitted to that drift (on the demo campaign, 0.4 K of warming in the 2 A
     triangles, the play operator then misses the current by 0.21 A RMS instead of 0.008 A).
 ``heating``
-    With the resistance measured before a run, coil heating leaves the eq.-4 flux drifting by
-    ``int (R(T) - R) i dt``; with ``C_th dT/dt = R i^2`` (cooling is negligible within a
-    recording) the drift is ``(alpha R^2 / C_th) int i int i^2``: linear in ``1 / C_th``, fitted by
-    least squares on the flux residual (``R_th`` is not identifiable from short recordings and
-    keeps its default, ``alpha`` is copper's unless the maps say otherwise).
+    ``C_th`` and, where runs that start warm cool measurably, ``R_th`` from the eq.-4 flux drift the coil
+    heating leaves (:mod:`solenoid_fmu.loop.heating_fit`, which also corrects recordings for it).
 ``friction``
     Dahl friction in the force, ``F_fr -> +-F_c`` over the presliding displacement, linear in
     ``F_c`` for each presliding length of a grid (5 um .. 100 um); the best fit wins.
@@ -41,14 +38,15 @@ note says so (``note["G_eddy_S"]``: the maps' value and the refit), and the impr
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 
+from ..fmu import start_excess_K
 from ..measure import flux_linkage
 from ..realtime import HysteresisError, MapTables, PlayHysteresis, fit_play_to_series
+from .heating_fit import heating_corrected
 from .residuals import recording_name
-from .signals import detrend, lowpass
+from .signals import lowpass
 from .tables import ImproveError
 
 #: Time constants of the eddy-ladder regression [s].
@@ -105,11 +103,17 @@ def _hyst_current(effects, psi) -> np.ndarray:
     return play.run(psi)
 
 
-def _without_heating(recordings: list, effects: dict) -> list:
-    """The recordings with the model's coil heating taken out of their voltage (module docstring);
-    unchanged when the model has no heating."""
+def _without_heating(recordings: list, effects: dict, flux_of) -> list:
+    """The recordings with the model's coil heating taken out of their voltage (module docstring), each run
+    from its temperature above ambient (``flux_of.ambient_R_ohm``, a FluxCache's, when known); unchanged when
+    the model has no heating."""
     heating = effects.get("heating")
-    return [heating_corrected(r, heating) for r in recordings] if heating else list(recordings)
+    if not heating:
+        return list(recordings)
+    ambient = getattr(flux_of, "ambient_R_ohm", None)
+    return [heating_corrected(r, heating, T_start_excess_K=start_excess_K(r.coil_resistance_ohm, ambient,
+                                                                          heating["alpha_per_K"]))
+            for r in recordings]
 
 
 def _flux_series(recs: list, tables: MapTables, flux_of):
@@ -128,7 +132,7 @@ def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[d
         recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
     if not recs:
         raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
-    recs = _without_heating(recs, effects)
+    recs = _without_heating(recs, effects, flux_of)
     bs, hs, used = [], [], []
     for rec, (t, psi, e, i, x) in _flux_series(recs, tables, flux_of):
         h = i - _i_f(tables, psi, x) - _eddy_current(tables, effects, e, t)
@@ -170,7 +174,7 @@ def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[
     recs = [r for r in recordings if r.kind == "eddy" and r.voltage_V is not None]
     if not recs:
         raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
-    recs = _without_heating(recs, effects)
+    recs = _without_heating(recs, effects, flux_of)
     rows, ys, used = [], [], []
     for rec, (t, psi, e, i, x) in _flux_series(recs, tables, flux_of):
         y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
@@ -204,57 +208,6 @@ def g_eddy_source(tables, note: dict) -> str:
     was = "none" if was is None else f"{was:.6g} S"
     return (f"refit with the eddy ladder by improve on {', '.join(note['fitted_on'])} "
             f"(replaces the maps' G_eddy, {was}, from: {old})")
-
-
-def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
-    """``C_th`` from the eq.-4 flux residual of current-driven recordings (see module docstring)."""
-    alpha = tables.coil.alpha_per_K
-    num = den = 0.0
-    used = []
-    for c in cases:
-        r = c.residuals.get("psi_Wb")
-        if r is None:
-            continue
-        t, i, R = c.time_s, c.current_A, c.R_ohm
-        dt = np.diff(t)
-        energy = np.concatenate([[0.0], np.cumsum(dt * i[1:] ** 2)])  # int i^2 dt
-        phi = alpha * R * R * np.concatenate([[0.0], np.cumsum(dt * i[1:] * energy[1:])])
-        if "psi_Wb" in c.detrended:
-            phi = detrend(phi, t)
-        num += float(phi @ r)
-        den += float(phi @ phi)
-        used.append(c.name)
-    if den <= 0.0 or num <= 0.0:
-        raise ImproveError("heating: the flux residual does not drift with the dissipated energy")
-    C_th = den / num
-    return ({"C_th_J_per_K": C_th, "R_th_K_per_W": 1.0, "alpha_per_K": alpha},
-            {"fitted_on": used})
-
-
-def heating_corrected(rec, heating: dict, R_ohm: float | None = None):
-    """The recording with the coil heating's resistive voltage removed (for a heating-free eq.-4 flux).
-
-    With the heating sub-model's parameters (``C_th_J_per_K``, ``R_th_K_per_W``, ``alpha_per_K``) the
-    temperature rise along the recording is integrated from the measured current,
-    ``C_th dT/dt = R (1 + alpha T) i^2 - T / R_th``, and ``R alpha T i`` is subtracted from the voltage,
-    so that paper eq. 4 with the resistance measured before the run gives the flux of a coil at constant
-    temperature. ``R_ohm`` [ohm] defaults to the header's resistance. Returns a new Recording (same
-    kind, header noted); recordings without a voltage are returned unchanged.
-    """
-    if rec.voltage_V is None:
-        return rec
-    R = float(R_ohm if R_ohm is not None else rec.coil_resistance_ohm)
-    C, Rth, alpha = heating["C_th_J_per_K"], heating["R_th_K_per_W"], heating["alpha_per_K"]
-    t = np.asarray(rec.time_s, dtype=float)
-    i = np.asarray(rec.current_A, dtype=float)
-    T = np.zeros_like(t)
-    for k in range(1, t.size):
-        Tk = T[k - 1]
-        T[k] = Tk + (t[k] - t[k - 1]) * (R * (1.0 + alpha * Tk) * i[k] ** 2 - Tk / Rth) / C
-    header = dict(rec.header)
-    note = f"voltage corrected for coil heating (C_th {C:.4g} J/K)"
-    header["notes"] = f"{header['notes']}; {note}" if header.get("notes") else note
-    return replace(rec, voltage_V=np.asarray(rec.voltage_V, dtype=float) - R * alpha * T * i, header=header)
 
 
 def _dahl(x: np.ndarray, presliding_m: float) -> np.ndarray:

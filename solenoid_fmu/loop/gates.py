@@ -20,7 +20,8 @@ import numpy as np
 from ..fmu import simulate_model
 from ..measure import Recording, flux_linkage
 from .diagnosis import DEFAULT_MIN_NRMS, diagnose
-from .effects import fit_eddy_ladder, fit_friction, fit_heating, fit_hysteresis, g_eddy_source
+from .effects import fit_eddy_ladder, fit_friction, fit_hysteresis, g_eddy_source
+from .heating_fit import fit_heating
 from .metrics import full_scales, nrmse_fs, white_noise_rms
 from .residuals import cases_from_recordings, recording_name
 from .tables import ADDABLE, ImproveError, with_effects
@@ -63,7 +64,10 @@ def simulate_cases(tables, recordings, progress=None, flux_of=flux_linkage, memo
     ``memo`` (a :class:`~solenoid_fmu.loop.residuals.CaseMemo`), if given."""
     def cases_of(recs):
         return cases_from_recordings(None, recs, progress=progress and (lambda n: progress(f"simulating {n}")),
-                                     simulate=lambda r, R: simulate_model(tables, r, R_ohm=R), flux_of=flux_of)
+                                     simulate=lambda r, R: simulate_model(tables, r, R_ohm=R, ambient_R_ohm=ambient),
+                                     flux_of=flux_of)
+
+    ambient = getattr(flux_of, "ambient_R_ohm", None)
 
     if memo is None:
         return cases_of(recordings)
@@ -243,7 +247,7 @@ class LoopRun(NamedTuple):
 
 
 def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps: list, heat_on_all: bool,
-                         heating_first: bool = False, min_fall: float = 0.0):
+                         heating_first: bool = False, min_fall: float = 0.0, joint: bool = False):
     """Heating was just kept: fit again what was fitted against the heating's drift (module docstring).
 
     First the flux-fitted effects kept before it (:data:`FLUX_FITTED`), along the heating-corrected flux;
@@ -256,9 +260,14 @@ def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps:
     ``heating_first``: the heating was just added from the resistance tracks (nothing fitted along the
     flux yet): only the heating is refitted on the flux residual, and it replaces the tracks' value if the
     error falls by more than the fraction ``min_fall`` (where the drift within the recordings is large
-    enough to measure C_th better than the tracks do).
+    enough to measure C_th better than the tracks do), or at all where the refit measured R_th (the tracks
+    give none: their section keeps the default, whose cooling of a warm start is then wrong). With ``joint``
+    the flux-fitted effects kept are fitted again along the flux the new heating corrects, in the same trial,
+    before it is judged: they were fitted
+    along the old heating's correction, and judged against them a better heating cannot show (a coil's
+    cooling mistaken by a default R_th is in the play operator's loops until both are fitted again).
     """
-    def refit(effect: str) -> bool:
+    def refit(effect: str, along: tuple = ()) -> bool:
         nonlocal effects, tables, cases
         on_all = effect == "heating" and heat_on_all
         recs = run.recordings if on_all else run.fit_recs
@@ -280,13 +289,33 @@ def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps:
             return False
         trial_fx = dict(effects, **{ADDABLE[effect]: section})
         trial = with_effects(tables, trial_fx, **replaced)
+        joint_steps = []
+        for e in along:  # along the flux the new heating corrects
+            try:
+                sec_e, note_e, rep_e = fit_effect(e, trial, trial_fx, run.fit_recs, [], run.flux_of)
+            except ImproveError as exc:
+                run.say(f"  {e} along the new heating's correction failed, kept as fitted: {exc}")
+                continue
+            trial_fx[ADDABLE[e]] = sec_e
+            replaced.update(rep_e)
+            trial = with_effects(tables, trial_fx, **replaced)
+            joint_steps.append((e, sec_e, note_e))
         trial_cases = simulate_cases(trial, run.recordings, run.say, run.flux_of)
         before, after = gate_error(cases, judged), gate_error(trial_cases, judged)
-        ok = after < (1.0 - min_fall) * before
+        # a heating refit that measured R_th (runs that start warm cool) brings what the tracks cannot: kept if it
+        # lowers the error at all
+        fall = 0.0 if effect == "heating" and str(note.get("R_th", "")).startswith("fitted") else min_fall
+        ok = after < (1.0 - fall) * before
         why = "on the residual of the model without heating" if effect == "heating" else \
             "along the heating-corrected flux"
+        if joint_steps:
+            why += "; with " + ", ".join(e for e, _, _ in joint_steps) + " refitted along its correction"
         steps.append(Step(effect, ok, params=section, heldout_before=before, heldout_after=after,
                           note=json.dumps(dict(note, refit=why)), refit=True))
+        for e, sec_e, note_e in joint_steps:
+            steps.append(Step(e, ok, params=sec_e, heldout_before=before, heldout_after=after,
+                              note=json.dumps(dict(note_e, refit="along the heating-corrected flux, jointly with "
+                                                                  "the heating refit")), refit=True))
         run.say(f"  {'validation' if not on_all else 'all-recordings'} error {before:.3g} -> {after:.3g}: "
                 f"{'refit kept' if ok else 'earlier fit kept'}")
         if ok:
@@ -294,7 +323,7 @@ def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps:
         return ok
 
     if heating_first:
-        refit("heating")
+        refit("heating", tuple(e for e in FLUX_FITTED if ADDABLE[e] in effects) if joint else ())
         return effects, tables, cases
     flux_fitted = [e for e in FLUX_FITTED if ADDABLE[e] in effects]
     if [refit(e) for e in flux_fitted].count(True) and refit("heating"):

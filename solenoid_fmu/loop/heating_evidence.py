@@ -20,12 +20,11 @@ from __future__ import annotations
 from ..errors import RecordingError
 from ..identification import KAPPA_SIGNIFICANT
 from ..measure import campaign_resistance
+from .heating_fit import R_TH_DEFAULT_K_PER_W
 from .residuals import recording_name
 
 #: Kinds of recording the heating rate is measured on (as the identification does).
 KINDS = ("flux", "ramp", "eddy")
-#: R_th [K/W] of the section (the default of the residual fit: not identifiable here).
-R_TH_DEFAULT_K_PER_W = 1.0
 
 
 def heating_from_resistance(recordings, tables) -> tuple[dict, dict] | None:

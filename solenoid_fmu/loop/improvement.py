@@ -27,16 +27,21 @@ Before step 1, coil heating is looked for where the flux residual cannot show it
 campaign's resistance tracks measure significantly (:mod:`solenoid_fmu.loop.heating_evidence`) is
 added with ``C_th = alpha / kappa`` and kept unless the validation error grows by ``min_gain`` or more
 (the margin an effect must gain to be kept); it is measured, not fitted to the residual, so it need not
-pay there (random-0's campaign: +1.2 % of the squared error with C_th 332 J/K against the truth's 300). Then C_th is
-fitted on the flux residual of all recordings, and that value replaces the tracks' where it cuts the
-error over all recordings by more than a tenth of ``min_gain`` (a drift large enough to measure it);
-once more at the end when hysteresis or an eddy ladder was added meanwhile (their part of the residual
-is then modelled).
+pay there (random-0's campaign: +1.2 % of the squared error with C_th 332 J/K against the truth's 300). Then C_th
+(and R_th where runs that start warm cool measurably: :mod:`solenoid_fmu.loop.heating_fit`) is fitted on the flux
+residual of all recordings, and that value replaces the tracks' where it cuts the error over all recordings by
+more than a tenth of ``min_gain`` (a drift large enough to measure it); once more at the end when hysteresis or
+an eddy ladder was added meanwhile (their part of the residual is then modelled), jointly with them: they are
+fitted again along the flux the new heating corrects before the trial is judged.
+
+Every run starts at its coil temperature above ambient: the run's resistance over the campaign's coldest
+(``FluxCache.ambient_R_ohm``, :func:`~solenoid_fmu.loop.residuals.ambient_resistance`), which the model's
+heating cools from through R_th (``T_start_excess_K``).
 
 When coil heating is kept, the effects kept before it that were fitted along the eq.-4 flux
 (hysteresis, eddy ladder: :data:`FLUX_FITTED`) were fitted to a flux that carried the heating's drift
 (the resistance measured before the run, while the coil warmed); they are fitted again along the
-heating-corrected flux (:func:`solenoid_fmu.loop.effects.heating_corrected`), then the heating itself
+heating-corrected flux (:func:`solenoid_fmu.loop.heating_fit.heating_corrected`), then the heating itself
 on the residual the corrected effects leave, and each refit replaces the earlier fit if it lowers the
 validation error (steps marked ``refit``; :func:`~solenoid_fmu.loop.gates.refit_after_heating`).
 
@@ -158,6 +163,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         say(f"{effect}: not identifiable from these recordings: {what}")
     timing = ForceTiming(note="not measured: the run's flux_of is no FluxCache, which would carry it")
     if isinstance(flux_of, FluxCache):  # the simulations below compare the forces with this timing
+        flux_of.note_ambient(recordings)  # and start a heated coil at its temperature above ambient
         timing = measure_force_timing(tables, recordings, flux_of)
         flux_of.force_lead_samples = timing.used_lead_samples
         say(timing.note)
@@ -191,9 +197,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     if heat is not None and steps[0].accepted and any(s.accepted and not s.refit and s.effect in FLUX_FITTED
                                                       for s in steps[1:]):
         # the heating from the tracks was refitted on the flux residual before the effects fitted along the
-        # flux were in: once more now that their part of the residual is modelled
+        # flux were in: once more now that their part of the residual is modelled, and those effects with it
         effects, tables, cases = refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
-                                                      heating_first=True, min_fall=0.1 * min_gain)
+                                                      heating_first=True, min_fall=0.1 * min_gain, joint=True)
     return Improvement(tables, steps, diagnoses, cases0, cases, missing, timing)
 
 

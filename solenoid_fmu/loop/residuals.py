@@ -54,6 +54,11 @@ class ResidualCase:
         Signals whose residual is only known up to a linear trend ``a + b t`` and was projected
         orthogonal to it (``psi_Wb`` of a recording without a zero-current rest: eq. 4 cannot
         measure its voltage offset); their features are projected the same way.
+    ambient_R_ohm : float or None
+        The campaign's coldest resistance [ohm] (:func:`ambient_resistance`), the coil at ambient: with
+        ``R_ohm`` it gives the temperature the run starts above ambient
+        (:func:`solenoid_fmu.fmu.simulate.start_excess_K`); None
+        when not known.
     """
 
     name: str
@@ -68,6 +73,23 @@ class ResidualCase:
     drive: str = ""
     path: str = ""
     detrended: tuple = ()
+    ambient_R_ohm: float | None = None
+
+
+def ambient_resistance(recordings, flux_of) -> float | None:
+    """The campaign's coldest coil resistance [ohm]: the least of the resistances its runs start from (the
+    eq.-4 resistance of a current-driven recording with a voltage, else the header's); None without any.
+
+    Taken for the coil at ambient: a campaign begins with a cold coil, and a run that starts warmer (its
+    resistance above this one) starts with the heat the runs before it left
+    (:func:`solenoid_fmu.fmu.simulate.start_excess_K`)."""
+    found = []
+    for rec in recordings:
+        if rec.voltage_V is not None and rec.kind != "voltage_step":
+            found.append(float(flux_of(rec).R_ohm))
+        elif rec.coil_resistance_ohm:
+            found.append(float(rec.coil_resistance_ohm))
+    return min(found) if found else None
 
 
 class FluxCache:
@@ -80,12 +102,21 @@ class FluxCache:
     It also carries the other thing the run measured of the recordings' channels: ``force_lead_samples``,
     the force channel's lead over the voltage and current [sample periods] (0 unless the loop measured a
     significant one, :mod:`solenoid_fmu.loop.force_timing`), with which :func:`cases_from_recordings`
-    compares every simulated force on the force channel's time base (:func:`residual_case`).
+    compares every simulated force on the force channel's time base (:func:`residual_case`), and
+    ``ambient_R_ohm``, the campaign's coldest resistance (None until :meth:`note_ambient`), from which a
+    model with coil heating starts each run at its temperature above ambient
+    (:func:`solenoid_fmu.fmu.simulate.heating_start`).
     """
 
     def __init__(self):
         self._by_id: dict = {}
         self.force_lead_samples = 0.0
+        self.ambient_R_ohm = None
+
+    def note_ambient(self, recordings) -> None:
+        """Set ``ambient_R_ohm`` from the campaign ``recordings`` (:func:`ambient_resistance`) if not set."""
+        if self.ambient_R_ohm is None:
+            self.ambient_R_ohm = ambient_resistance(recordings, self)
 
     def __call__(self, rec):
         hit = self._by_id.get(id(rec))
@@ -145,9 +176,10 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
     """
     if simulate is None:
         def simulate(rec, R_ohm):
-            return simulate_recording(fmu_path, rec, R_ohm=R_ohm)
+            return simulate_recording(fmu_path, rec, R_ohm=R_ohm, ambient_R_ohm=ambient)
 
     lead = float(getattr(flux_of, "force_lead_samples", 0.0))
+    ambient = getattr(flux_of, "ambient_R_ohm", None)
     cases = []
     for item in recordings:
         rec = item if isinstance(item, Recording) else read_recording(item)
@@ -157,7 +189,8 @@ def cases_from_recordings(fmu_path, recordings, progress=None, simulate=None,
         if rec.position_m is not None:  # drive the model with the position less its encoder jitter
             rec = dataclasses.replace(rec, position_m=conditioned_position(rec.position_m))
         # the flux does not depend on the position: that of the recording as read
-        case = residual_case(rec, simulate, flux_of=lambda _rec, read=read: flux_of(read), force_lead_samples=lead)
+        case = residual_case(rec, simulate, flux_of=lambda _rec, read=read: flux_of(read), force_lead_samples=lead,
+                             ambient_R_ohm=ambient)
         if case is not None:
             cases.append(case)
     return cases
@@ -173,7 +206,8 @@ def _head_anchored(psi_meas, res, fr) -> tuple:
     return psi_meas - shift, res - shift
 
 
-def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float = 0.0) -> ResidualCase | None:
+def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float = 0.0,
+                  ambient_R_ohm: float | None = None) -> ResidualCase | None:
     """Residuals of one recording against a simulator (None if it has no signal to compare).
 
     The flux residual compares like with like: the measured flux is paper eq. 4 applied to the
@@ -203,7 +237,7 @@ def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float
     again to meet the measured one; the position, sampled at the stamp like the force, is not moved. A
     voltage-driven one (a voltage step, the armature at rest) is driven as recorded and its force advanced
     by the lead: its voltage held at the interval's mean is already what eq. 4 integrates, and advancing the
-    voltage would smear the step over one more sample.
+    voltage would smear the step over one more sample. ``ambient_R_ohm`` [ohm] is kept in the case (heating fit).
     """
     residuals, measured = {}, {}
     fr = None
@@ -249,5 +283,5 @@ def residual_case(rec, simulate, flux_of=flux_linkage, force_lead_samples: float
     if not residuals:
         return None
     return ResidualCase(recording_name(rec), np.asarray(rec.time_s), psi_sim, np.asarray(rec.current_A),
-                        np.asarray(rec.positions_m()), R or 1.0, residuals, measured, kind=rec.kind,
-                        drive=sim.drive_mode, path="" if rec.path is None else str(rec.path), detrended=detrended)
+                        np.asarray(rec.positions_m()), R or 1.0, residuals, measured, rec.kind, sim.drive_mode,
+                        "" if rec.path is None else str(rec.path), detrended, ambient_R_ohm)

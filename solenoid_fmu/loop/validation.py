@@ -128,6 +128,7 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=No
     if flux_of is None:
         flux_of = FluxCache()
     if isinstance(flux_of, FluxCache):
+        flux_of.note_ambient(recs)
         timing = timing_of_fmu(fmu_path, recs, flux_of)
     lead = float(getattr(flux_of, "force_lead_samples", 0.0))
     return _validate(str(fmu_path), recs, lambda rec: cases_from_recordings(fmu_path, [rec], progress=progress,
@@ -141,6 +142,7 @@ def timed_cases(fmu_path, recordings, progress=None) -> list:
     what ``diagnose`` works on, compared as :func:`validate` compares."""
     recs = _read_all(recordings)
     flux_of = FluxCache()
+    flux_of.note_ambient(recs)
     timing_of_fmu(fmu_path, recs, flux_of)
     return cases_from_recordings(fmu_path, recs, progress=progress, flux_of=flux_of)
 
@@ -174,7 +176,9 @@ def validate_model(tables: MapTables, recordings, *, label: str, report_dir=None
                 progress(recording_name(rec))
             return known
         return cases_from_recordings(None, [rec], progress=progress, flux_of=flux_of,
-                                     simulate=lambda r, R: simulate_model(tables, r, R_ohm=R))
+                                     simulate=lambda r, R: simulate_model(tables, r, R_ohm=R, ambient_R_ohm=ambient))
+
+    ambient = getattr(flux_of, "ambient_R_ohm", None)
 
     return _validate(label, recordings, cases_of, report_dir, images,
                      extra={"force_lead_samples": float(getattr(flux_of, "force_lead_samples", 0.0))})

@@ -33,6 +33,7 @@ __all__ = [
     "ModelMapsError", "NEWTON_MAX_ITER", "NEWTON_TOL_REL", "ROS2_GAMMA", "SolenoidModel", "STATE_LAYOUT",
     "STATE_NAMES", "cell_coefficients", "coil_problems", "eddy_problems", "effects_data", "load_tables",
     "maps_pair_consistent", "pchip_scaled_slopes", "play_step", "read_maps_dir", "replace_meta",
+    "T_START_EXCESS_RANGE_K", "heating_alpha",
     # the model package itself and its sources (the FMU payload), the hysteresis operators
     "model", "MODEL_SOURCE", "model_source_files", "HysteresisError", "PlayHysteresis", "PreisachHysteresis",
     "fit_play_to_series",

@@ -43,9 +43,9 @@ typedef struct {
     double s[N_STATE];                          /* model.py's state vector */
     /* effect sub-models: switches and scalars as set, then in use (model.py params) */
     int hyst_set, lad_set, heat_set, fric_set;
-    double gain_set, Cth_set, Rth_set, alpha_set, fricN_set, presl_set;
+    double gain_set, Cth_set, Rth_set, alpha_set, fricN_set, presl_set, T0_set;
     int fx_on, hyst_on, lad_on, heat_on, fric_on;
-    double gain, Cth, Rth, alpha, fricN, presl;
+    double gain, Cth, Rth, alpha, fricN, presl, T0;   /* T0: T_start_excess_K [K] */
     double fx[N_FX];                            /* effect states (model.py SolenoidModel._fx) */
     double me_time_s, me_psi_Wb;                /* model exchange: time and continuous state */
     double me_lad[LAD_ALLOC], me_T;             /* model exchange: ladder currents [A], T rise [K] */

@@ -77,7 +77,7 @@ static double ros2_ladder(double psi, double *ik, double u, double cc, double m,
  *     U = R(T) i + e,  e = dPsi/dt,  R(T) = R (1 + alpha T)
  *     i = i_f(Psi, x) + i_h + G e + sum_k i_k,   tau_k di_k/dt = G_k e - i_k   (eddy ladder)
  *     i_h = gain g(Psi) sum_j w_j (Psi - play_j(Psi))                              (hysteresis)
- *     C_th dT/dt = R(T) i^2 - T / R_th                                             (heating)
+ *     C_th dT/dt = R(T) i^2 - (T + T_0) / R_th      (heating; T_0 = T_start_excess_K above ambient)
  *     F = F(Psi, x) + F_fr,  F_fr -> +-F_c over |dx| ~ presliding                  (Dahl friction)
  * Flux and ladder currents: ROS2 in mass-matrix form (arrow system, O(sections)); hysteresis and
  * temperature explicitly after every sub-step; friction once per step. Inputs checked. */
@@ -87,7 +87,7 @@ static void sol_step_fx(Inst *in, double t_s, double h)
     double *s = c->s, *fx = c->fx, *plays = c->fx + FX_PLAY;
     const int voltage = c->voltage, heat = c->heat_on, hy = c->hyst_on, nl = c->lad_on ? SOL_N_LAD : 0;
     const double u = voltage ? c->u_V : c->i_A, x = c->x_m, R0 = c->R, G0 = c->G;
-    const double alpha = c->alpha, Cth = c->Cth, Rth = c->Rth, gain = c->gain;
+    const double alpha = c->alpha, Cth = c->Cth, Rth = c->Rth, T0 = c->T0, gain = c->gain;
     double ik[LAD_ALLOC] = {0.0};  /* initialized: with one section gcc -Werror=maybe-uninitialized refused it */
     double T = fx[FX_T_RISE_K], ih = fx[FX_I_HYST_A], psi0 = s[ST_PSI_WB], psi = psi0, hs, gh, nd, w, R, sik, i_f, d_end, force;
     double dpsi, ffr;
@@ -111,7 +111,7 @@ static void sol_step_fx(Inst *in, double t_s, double h)
         }
         if (heat) {
             double i_sub = voltage ? (u - (psi - psi_a) / hs) / R : u;
-            T += hs * (R * i_sub * i_sub - T / Rth) / Cth;
+            T += hs * (R * i_sub * i_sub - (T + T0) / Rth) / Cth;
         }
         if (hy) ih = gain * play_step(plays, psi);
     }

@@ -11,7 +11,7 @@ typedef struct { double i, U, F, psi, dpsi, ieddy, der[NX]; int pc, xc; double i
  *   voltage:          e = (U - R (i_f + i_h + sum i_k)) / (1 + R G),  i = i_f + i_h + G e + sum i_k
  *   current, G > 0:   e = (i - i_f - i_h - sum i_k) / G,               U = R i + e
  *   current, G = 0 (no ladder): i_f(Psi, x) = i - i_h algebraic, e = 0, U = R i
- *   der(i_k) = (G_k e - i_k) / tau_k,   der(T) = (R i^2 - T / R_th) / C_th
+ *   der(i_k) = (G_k e - i_k) / tau_k,   der(T) = (R i^2 - (T + T_0) / R_th) / C_th
  * Hysteresis and friction are rate independent: i_h is the play operator moved from its committed
  * state to the current Psi, F_fr the Dahl force moved from the committed (F_fr, x) to the current x;
  * both are exact for monotone Psi and x between accepted steps and continuous in the states, so no
@@ -56,7 +56,7 @@ static void me_eval(const Core *c, MeOut *o)
         if (o->pc && ((psi > 0.0 && o->der[0] > 0.0) || (psi < 0.0 && o->der[0] < 0.0))) o->der[0] = 0.0;
     }
     for (k = 0; k < nl; k++) o->der[ME_LAD + k] = (SOL_LAD_G[k] * o->dpsi - c->me_lad[k]) / SOL_LAD_TAU[k];
-    if (SOL_FX_HEAT && c->heat_on) o->der[NX - 1] = (R * o->i * o->i - T / c->Rth) / c->Cth;
+    if (SOL_FX_HEAT && c->heat_on) o->der[NX - 1] = (R * o->i * o->i - (T + c->T0) / c->Rth) / c->Cth;
     o->psi = psi;
     o->F = f + c->fx[FX_F_FRICTION_N];
     if (c->fric_on && c->x_m != c->fx[FX_X_PREV_M]) {

@@ -48,6 +48,16 @@ static int apply_params(Inst *in, int all)
             || !fx_scalar_ok(in, "C_th_J_per_K", c->Cth_set, 1) || !fx_scalar_ok(in, "R_th_K_per_W", c->Rth_set, 1)
             || !fx_scalar_ok(in, "alpha_per_K", c->alpha_set, 0) || !fx_scalar_ok(in, "presliding_m", c->presl_set, 1))
             return 0;
+        if (!(c->T0_set >= SOL_T_START_EXCESS_MIN_K && c->T0_set <= SOL_T_START_EXCESS_MAX_K)) {
+            say(in, fmi2Error, "T_start_excess_K must lie in [%g, %g] K, got %.17g", SOL_T_START_EXCESS_MIN_K,
+                SOL_T_START_EXCESS_MAX_K, c->T0_set);
+            return 0;
+        }
+        if (!(1.0 + c->alpha_set * c->T0_set > 0.0)) {
+            say(in, fmi2Error, "alpha_per_K %.17g and T_start_excess_K %.17g give the coil no positive resistance at "
+                "ambient (1 + alpha T_0 <= 0)", c->alpha_set, c->T0_set);
+            return 0;
+        }
     }
     if (all) {
         if (drive != DRIVE_VOLTAGE && drive != DRIVE_CURRENT) {
@@ -69,8 +79,9 @@ static int apply_params(Inst *in, int all)
         c->fx_on = c->hyst_on || c->lad_on || c->heat_on || c->fric_on;
         c->Cth = c->Cth_set;
         c->Rth = c->Rth_set;
-        c->alpha = c->alpha_set;
+        c->alpha = c->alpha_set / (1.0 + c->alpha_set * c->T0_set);   /* model.py heating_alpha */
         c->presl = c->presl_set;
+        c->T0 = c->T0_set;
     }
     c->gain = c->gain_set;
     c->fricN = c->fricN_set;

@@ -42,7 +42,7 @@
  * moved on (new states, parameters or effects), solenoid_fmu.fmu.c_sources.check_implemented refuses to
  * build, and so does the compiler. Port the new effects here (struct Core, sol_step), then update these. */
 #define IMPLEMENTS_STATE_LAYOUT 1
-#define IMPLEMENTS_N_PARAMS 15
+#define IMPLEMENTS_N_PARAMS 16
 #define IMPLEMENTS_N_EFFECTS 4
 #define IMPLEMENTS_N_EFFECT_STATES 4
 #if STATE_LAYOUT != IMPLEMENTS_STATE_LAYOUT || SOL_N_PARAMS != IMPLEMENTS_N_PARAMS \
@@ -86,6 +86,7 @@ static void reset_core(Core *c)
     c->alpha_set = SOL_ALPHA_PER_K_DEFAULT;
     c->fricN_set = SOL_FRICTION_N_DEFAULT;
     c->presl_set = SOL_PRESLIDING_M_DEFAULT;
+    c->T0_set = SOL_T_START_EXCESS_K_DEFAULT;
     c->dirty = 1;
     c->ready = 0;
     c->s[ST_STATE_LAYOUT] = STATE_LAYOUT;
@@ -240,6 +241,7 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
         case VR_ALPHA_PER_K: value[k] = c->alpha_set; break;
         case VR_FRICTION_N: value[k] = c->fricN_set; break;
         case VR_PRESLIDING_M: value[k] = c->presl_set; break;
+        case VR_T_START_EXCESS_K: value[k] = c->T0_set; break;
 #endif
         default:
             if (vr[k] >= VR_PSI_STATE && vr[k] < VR_PSI_STATE + 2 * NX) {
@@ -343,16 +345,19 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
         case VR_R_TH_K_PER_W:
         case VR_ALPHA_PER_K:
         case VR_PRESLIDING_M:
+        case VR_T_START_EXCESS_K:
             if (!is_fixed_phase(in)) {
                 say(in, fmi2Error, "fmi2SetReal: %s is a fixed parameter; set it before fmi2ExitInitializationMode",
                     vr[k] == VR_C_TH_J_PER_K ? "C_th_J_per_K" : vr[k] == VR_R_TH_K_PER_W ? "R_th_K_per_W"
-                    : vr[k] == VR_ALPHA_PER_K ? "alpha_per_K" : "presliding_m");
+                    : vr[k] == VR_ALPHA_PER_K ? "alpha_per_K" : vr[k] == VR_PRESLIDING_M ? "presliding_m"
+                    : "T_start_excess_K");
                 return fmi2Error;
             }
             if (vr[k] == VR_C_TH_J_PER_K) c->Cth_set = v;
             else if (vr[k] == VR_R_TH_K_PER_W) c->Rth_set = v;
             else if (vr[k] == VR_ALPHA_PER_K) c->alpha_set = v;
-            else c->presl_set = v;
+            else if (vr[k] == VR_PRESLIDING_M) c->presl_set = v;
+            else c->T0_set = v;
             c->dirty = 1;
             break;
 #endif
@@ -436,7 +441,7 @@ static const char *core_problem(const Core *c)
     const int flags[] = { c->voltage, c->dirty, c->ready, c->hyst_set, c->lad_set, c->heat_set, c->fric_set,
                           c->fx_on, c->hyst_on, c->lad_on, c->heat_on, c->fric_on };
     const double used[] = { c->R, c->G, c->Psi0, c->t0_s, c->gain, c->Cth, c->Rth, c->alpha,
-                            c->fricN, c->presl, c->me_time_s, c->me_psi_Wb, c->me_T };
+                            c->fricN, c->presl, c->T0, c->me_time_s, c->me_psi_Wb, c->me_T };
     size_t k;
     if (c->s[ST_STATE_LAYOUT] != STATE_LAYOUT) return "state layout";
     for (k = 0; k < N_STATE; k++) if (!is_finite(c->s[k])) return "model state not finite";

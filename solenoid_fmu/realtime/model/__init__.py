@@ -118,9 +118,11 @@ from .definitions import (
     ROS2_GAMMA,
     STATE_LAYOUT,
     STATE_NAMES,
+    T_START_EXCESS_RANGE_K,
     ModelError,
     ModelInputError,
     ModelMapsError,
+    heating_alpha,
 )
 from .effects import effects_data
 from .maps_io import (
@@ -162,10 +164,12 @@ __all__ = [
     "SolenoidModel",
     "STATE_LAYOUT",
     "STATE_NAMES",
+    "T_START_EXCESS_RANGE_K",
     "cell_coefficients",
     "coil_problems",
     "eddy_problems",
     "effects_data",
+    "heating_alpha",
     "load_tables",
     "pchip_scaled_slopes",
     "MAPS_JSON",

@@ -70,10 +70,24 @@ DEFAULT_PARAMS = {
     "C_th_J_per_K": None,  # heat capacity of the coil [J/K]
     "R_th_K_per_W": None,  # thermal resistance to ambient [K/W]
     "alpha_per_K": None,  # temperature coefficient of R [1/K]
+    # coil temperature above ambient at initialization [K] (heating: the coil cools from it towards ambient
+    # through R_th; R_ohm is its resistance at that temperature). 0: the run starts at ambient
+    "T_start_excess_K": 0.0,
     "friction_on": None,  # friction in the force output (Dahl model in x)
     "friction_N": None,  # sliding friction force [N]
     "presliding_m": None,  # presliding displacement of the Dahl model [m]
 }
+
+#: Range of ``T_start_excess_K`` [K]: from a coil colder than ambient to one at insulation class H's 180 degC
+#: in a 20 degC room (beyond, the linear R(T) and the first-order thermal model are no longer the coil).
+T_START_EXCESS_RANGE_K = (-50.0, 160.0)
+
+def heating_alpha(alpha_per_K: float, T_start_excess_K: float) -> float:
+    """The coefficient [1/K] of the temperature rise ``T`` in ``R(T) = R (1 + a T)`` for a run whose start
+    resistance ``R`` is that of a coil ``T_start_excess_K`` above ambient: ``alpha / (1 + alpha T_0)`` (the coil's
+    resistance is linear in its temperature with ``alpha`` at ambient; the native FMU computes the same)."""
+    return alpha_per_K / (1.0 + alpha_per_K * T_start_excess_K)
+
 
 #: Temperature coefficient of copper's resistance at 20 degC [1/K]; the one value every module uses.
 COPPER_ALPHA_PER_K = 0.00393

@@ -136,7 +136,7 @@ def fx_substeps(tab: MapTables, fx: dict, u: float, j: int, w: float, psi: float
             pc = pc or clamped
         if heat:
             i_sub = (u - (psi - psi_a) / hs) / R if voltage else u
-            T += hs * (R * i_sub * i_sub - T / fx["Rth"]) / fx["Cth"]
+            T += hs * (R * i_sub * i_sub - (T + fx["T0"]) / fx["Rth"]) / fx["Cth"]
         if hy is not None:
             ih = fx["gain"] * play_step(plays, hy["r"], hy["w"], hy["gb"], hy["gg"], psi)
     return psi, pc, ik, T, ih

@@ -10,6 +10,7 @@ from .definitions import (
     EFFECT_DEFAULTS,
     EFFECT_SCALARS,
     EFFECT_SWITCHES,
+    T_START_EXCESS_RANGE_K,
     ModelInputError,
     drive_code,
     finite_float,
@@ -57,6 +58,12 @@ def checked_param(key: str, value, tables: MapTables, fx_data: dict):
         v = finite_float(key, value)
         if v < 0.0:
             raise ModelInputError(f"hyst_gain must be >= 0, got {v!r}")
+        return v
+    elif key == "T_start_excess_K":
+        v = finite_float(key, value)
+        if not T_START_EXCESS_RANGE_K[0] <= v <= T_START_EXCESS_RANGE_K[1]:
+            raise ModelInputError(f"T_start_excess_K must lie in [{T_START_EXCESS_RANGE_K[0]:g}, "
+                                  f"{T_START_EXCESS_RANGE_K[1]:g}] K, got {v!r}")
         return v
     elif key in EFFECT_SCALARS:
         if value is None:

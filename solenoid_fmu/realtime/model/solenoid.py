@@ -38,6 +38,7 @@ from .definitions import (
     STATE_NAMES,
     ModelInputError,
     finite_float,
+    heating_alpha,
 )
 from .effects import effects_data
 from .integrate import dahl_friction, fx_substeps, plain_sum, ros2
@@ -107,11 +108,15 @@ class SolenoidModel:
         ------
         ModelInputError
             Unknown key, non-finite value, ``R_ohm <= 0``, ``G_eddy_S < 0``, ``h_sub_max_s <= 0``,
-            or an unknown drive mode.
+            an unknown drive mode, or ``1 + alpha_per_K T_start_excess_K <= 0``.
         """
         new = dict(self.params)
         for key, value in kwargs.items():
             new[key] = checked_param(key, value, self.tables, self._fx_data)
+        if not 1.0 + new.get("alpha_per_K", 0.0) * new.get("T_start_excess_K", 0.0) > 0.0:
+            raise ModelInputError(f"alpha_per_K {new['alpha_per_K']!r} and T_start_excess_K "
+                                  f"{new['T_start_excess_K']!r} give the coil no positive resistance at ambient "
+                                  "(1 + alpha T_0 <= 0)")
         self.params = new
         self._fx_on = any(new.get(k) for k in EFFECT_SWITCHES)
         if "R_ohm" in new and "G_eddy_S" in new and "drive_mode" in new and "h_sub_max_s" in new:
@@ -407,11 +412,12 @@ class SolenoidModel:
 
         Equations (SI), extending paper eqs. (1)-(3)::
 
-            U = R(T) i + e,   e = dPsi/dt,   R(T) = R (1 + alpha T)
+            U = R(T) i + e,   e = dPsi/dt,   R(T) = R (1 + alpha T / (1 + alpha T_0))
             i = i_f(Psi, x) + i_h + G e + sum_k i_k
             tau_k di_k/dt = G_k e - i_k                   (eddy ladder sections)
             i_h = gain * g(Psi) * sum_j w_j (Psi - play_j(Psi))   (hysteresis, play operator)
-            C_th dT/dt = R(T) i^2 - T / R_th              (heating, T = rise above start)
+            C_th dT/dt = R(T) i^2 - (T + T_0) / R_th      (heating, T = rise above start,
+                                                           T_0 = T_start_excess_K above ambient)
             F = F(Psi, x) + F_fr,  F_fr -> +-F_c over |dx| ~ presliding (Dahl, sign of dx)
 
         The flux and the ladder currents are integrated together by ROS2 in mass-matrix form
@@ -466,8 +472,10 @@ class SolenoidModel:
         p = self.params
         lad = self._fx_data.get("eddy_ladder") if p["eddy_ladder_on"] else None
         return {"voltage": p["drive_mode"] == DRIVE_VOLTAGE, "R0": p["R_ohm"], "G0": p["G_eddy_S"],
-                "heat": p["heating_on"], "alpha": p["alpha_per_K"], "Cth": p["C_th_J_per_K"],
-                "Rth": p["R_th_K_per_W"], "Gk": lad["G_S"] if lad else (), "tk": lad["tau_s"] if lad else (),
+                "heat": p["heating_on"], "alpha": heating_alpha(p["alpha_per_K"], p["T_start_excess_K"]),
+                "Cth": p["C_th_J_per_K"],
+                "Rth": p["R_th_K_per_W"], "T0": p["T_start_excess_K"],
+                "Gk": lad["G_S"] if lad else (), "tk": lad["tau_s"] if lad else (),
                 "hy": self._fx_data.get("hysteresis") if p["hysteresis_on"] else None, "gain": p["hyst_gain"]}
 
 
