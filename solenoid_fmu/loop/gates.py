@@ -246,6 +246,24 @@ class LoopRun(NamedTuple):
     say: object
 
 
+def _fitted_along(run: LoopRun, along: tuple, tables, trial_fx: dict, replaced: dict) -> tuple:
+    """The flux-fitted effects ``along`` fitted again along the flux the heating of ``trial_fx`` corrects:
+    (effects, tables, [(effect, section, note)]); one that fails keeps its fit (said)."""
+    trial = with_effects(tables, trial_fx, **replaced)
+    joint = []
+    for e in along:
+        try:
+            sec_e, note_e, rep_e = fit_effect(e, trial, trial_fx, run.fit_recs, [], run.flux_of)
+        except ImproveError as exc:
+            run.say(f"  {e} along the new heating's correction failed, kept as fitted: {exc}")
+            continue
+        trial_fx[ADDABLE[e]] = sec_e
+        replaced.update(rep_e)
+        trial = with_effects(tables, trial_fx, **replaced)
+        joint.append((e, sec_e, note_e))
+    return trial_fx, trial, joint
+
+
 def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps: list, heat_on_all: bool,
                          heating_first: bool = False, min_fall: float = 0.0, joint: bool = False):
     """Heating was just kept: fit again what was fitted against the heating's drift (module docstring).
@@ -287,19 +305,8 @@ def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps:
             steps.append(Step(effect, False, note=f"refit: {exc}", refit=True))
             run.say(f"  refit failed, the earlier fit stays: {exc}")
             return False
-        trial_fx = dict(effects, **{ADDABLE[effect]: section})
-        trial = with_effects(tables, trial_fx, **replaced)
-        joint_steps = []
-        for e in along:  # along the flux the new heating corrects
-            try:
-                sec_e, note_e, rep_e = fit_effect(e, trial, trial_fx, run.fit_recs, [], run.flux_of)
-            except ImproveError as exc:
-                run.say(f"  {e} along the new heating's correction failed, kept as fitted: {exc}")
-                continue
-            trial_fx[ADDABLE[e]] = sec_e
-            replaced.update(rep_e)
-            trial = with_effects(tables, trial_fx, **replaced)
-            joint_steps.append((e, sec_e, note_e))
+        trial_fx, trial, joint_steps = _fitted_along(run, along, tables, dict(effects, **{ADDABLE[effect]: section}),
+                                                     replaced)
         trial_cases = simulate_cases(trial, run.recordings, run.say, run.flux_of)
         before, after = gate_error(cases, judged), gate_error(trial_cases, judged)
         # a heating refit that measured R_th (runs that start warm cool) brings what the tracks cannot: kept if it
