@@ -96,6 +96,10 @@ def test_heating_start_only_for_maps_with_heating():
     assert heating_start(with_heat, R, R_AMBIENT_OHM) == {"T_start_excess_K": pytest.approx(2.5, rel=1e-12)}
     assert heating_start(with_heat, R, None) == {}
     assert heating_start(without, R, R_AMBIENT_OHM) == {}
+    # a section without alpha: the model's default (copper's), not the maps' coil value, as model.py takes it
+    no_alpha = SimpleNamespace(effects=SimpleNamespace(heating={"C_th_J_per_K": 50.0}),
+                               coil=SimpleNamespace(alpha_per_K=0.5))
+    assert heating_start(no_alpha, R, R_AMBIENT_OHM) == {"T_start_excess_K": pytest.approx(2.5, rel=1e-12)}
 
 
 def _recording(kind, R_header_ohm, t=None, i=None, voltage_V=None):

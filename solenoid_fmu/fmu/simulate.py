@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import FmuInputError
 from ..measure import Recording, read_recording
 from ..realtime import (
+    COPPER_ALPHA_PER_K,
     DRIVE_CURRENT,
     DRIVE_VOLTAGE,
     STATE_NAMES,
@@ -75,9 +76,8 @@ def heating_start(tables: MapTables, R_ohm: float | None, ambient_R_ohm: float |
     heat = tables.effects.heating if tables.effects is not None else None
     if not heat or ambient_R_ohm is None:
         return {}
-    alpha = heat.get("alpha_per_K")
-    return {"T_start_excess_K": start_excess_K(R_ohm, ambient_R_ohm,
-                                               tables.coil.alpha_per_K if alpha is None else float(alpha))}
+    alpha = float(heat.get("alpha_per_K", COPPER_ALPHA_PER_K))  # the model's default where the section has none
+    return {"T_start_excess_K": start_excess_K(R_ohm, ambient_R_ohm, alpha)}
 
 
 def simulate_recording(fmu_path, recording, *, drive: str = "auto", R_ohm: float | None = None,
