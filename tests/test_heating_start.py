@@ -55,7 +55,7 @@ def test_runs_that_start_warm_give_c_th_and_r_th(C, R_th):
     section, note = fit_heating(TABLES, {}, cases)
     assert abs(section["C_th_J_per_K"] / C - 1.0) < 0.03, section
     assert abs(section["R_th_K_per_W"] / R_th - 1.0) < 0.10, section
-    assert note["R_th"].startswith("fitted")
+    assert note["R_th"].startswith("fitted") and note["R_th_fitted"] is True
 
 
 def test_runs_all_at_ambient_keep_the_default_r_th_and_still_give_c_th():

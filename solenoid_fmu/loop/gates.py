@@ -311,7 +311,7 @@ def refit_after_heating(run: LoopRun, effects: dict, tables, cases: list, steps:
         before, after = gate_error(cases, judged), gate_error(trial_cases, judged)
         # a heating refit that measured R_th (runs that start warm cool) brings what the tracks cannot: kept if it
         # lowers the error at all
-        fall = 0.0 if effect == "heating" and str(note.get("R_th", "")).startswith("fitted") else min_fall
+        fall = 0.0 if effect == "heating" and note.get("R_th_fitted") else min_fall
         ok = after < (1.0 - fall) * before
         why = "on the residual of the model without heating" if effect == "heating" else \
             "along the heating-corrected flux"

@@ -13,8 +13,9 @@ and ``K_tau[q](t) = int_0^t exp(-(t - s) / tau) q(s) ds``,
     T = (1 / C_th) K_tau[R i^2] - (T_0 / tau) K_tau[1],
     drift = (1 / C_th) a R int K_tau[R i^2] i dt - (1 / tau) a R T_0 int K_tau[1] i dt.
 
-For a fixed ``tau`` the drift is linear in ``1 / C_th``; :func:`fit_heating` searches ``tau`` (log scale,
-:data:`TAU_RANGE_S`) for the least squares over the flux residuals and takes ``C_th`` there and
+For a fixed ``tau`` the drift is linear in ``1 / C_th``; :func:`fit_heating` searches ``tau`` within
+:data:`TAU_RANGE_S` (a log-scale grid, then scipy's bounded Brent between the best point's neighbours) for the
+least squares over the flux residuals and takes ``C_th`` there and
 ``R_th = tau / C_th``, where the optimum lies inside the range and ``R_th`` inside :data:`R_TH_RANGE_K_PER_W`:
 runs that start warm and cool measurably pin it. Otherwise (every run near ambient, or a residual that a
 cooling does not explain) ``R_th`` keeps its default (:data:`R_TH_DEFAULT_K_PER_W`) and ``C_th`` is fitted with
@@ -96,22 +97,19 @@ class _Drifts:
 
 
 def _tau_search(drifts: _Drifts) -> tuple:
-    """(tau, 1 / C_th) minimizing the squares over a log grid refined by golden sections; tau None at a bound."""
+    """(tau, 1 / C_th) minimizing the squares over a log grid, refined between the grid's neighbours of its best
+    point (scipy's bounded Brent); tau None at a bound of :data:`TAU_RANGE_S`."""
+    from scipy.optimize import minimize_scalar  # lazy: heavy to import, only this fit needs it
+
     lo, hi = math.log(TAU_RANGE_S[0]), math.log(TAU_RANGE_S[1])
     grid = np.linspace(lo, hi, 41)
     sse = [drifts.fit(math.exp(g), True)[1] for g in grid]
     k = int(np.argmin(sse))
     if k in (0, grid.size - 1):
         return None, None
-    a, b = grid[k - 1], grid[k + 1]
-    ratio = (math.sqrt(5.0) - 1.0) / 2.0
-    for _ in range(30):
-        c1, c2 = b - ratio * (b - a), a + ratio * (b - a)
-        if drifts.fit(math.exp(c1), True)[1] <= drifts.fit(math.exp(c2), True)[1]:
-            b = c2
-        else:
-            a = c1
-    tau = math.exp(0.5 * (a + b))
+    best = minimize_scalar(lambda g: drifts.fit(math.exp(g), True)[1], bounds=(grid[k - 1], grid[k + 1]),
+                           method="bounded", options={"xatol": 1e-4})
+    tau = math.exp(float(best.x))
     return tau, drifts.fit(tau, True)[0]
 
 
@@ -127,13 +125,15 @@ def fit_heating(tables, effects, cases) -> tuple[dict, dict]:
     if drifts.any_warm:
         tau, x = _tau_search(drifts)
         R_th = tau * x if tau is not None and x > 0.0 else math.nan
-        if R_TH_RANGE_K_PER_W[0] <= R_th <= R_TH_RANGE_K_PER_W[1]:
+        note["R_th_fitted"] = bool(R_TH_RANGE_K_PER_W[0] <= R_th <= R_TH_RANGE_K_PER_W[1])
+        if note["R_th_fitted"]:
             note["R_th"] = f"fitted: runs that start above ambient cool measurably (tau {tau:.4g} s)"
             return {"C_th_J_per_K": float(1.0 / x), "R_th_K_per_W": float(R_th), "alpha_per_K": alpha}, note
         note["R_th"] = ("default: the runs' cooling gives no thermal time constant inside "
                         f"{TAU_RANGE_S[0]:g} .. {TAU_RANGE_S[1]:g} s with R_th inside "
                         f"{R_TH_RANGE_K_PER_W[0]:g} .. {R_TH_RANGE_K_PER_W[1]:g} K/W")
     else:
+        note["R_th_fitted"] = False
         note["R_th"] = "default: no run starts measurably above ambient"
     x = x0
     for _ in range(4):  # tau = R_th C_th with the default R_th
