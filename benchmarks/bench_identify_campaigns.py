@@ -13,12 +13,16 @@ where heating is the rig's only effect, also that error with the rig's own heati
 exact model's (truth maps without and with the rig's heating): how far the 1/3 cut is within reach; and the
 final residuals' white noise alone (the noise floor no model goes below, ``loop.gates.noise_floor``).
 
-Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N]`` (first N campaigns;
-about 1 min each on 2 cores).
+Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N] [--loop-preset full]`` (first
+N campaigns; about 1 min each on 2 cores). The loop's maps are the test's ``medium`` preset (FEM mesh 2.0) unless
+``--loop-preset`` names another: ``full`` is the pipeline's default (mesh 1.0; its FEM sweep on two processes,
+about 1.5 min more per campaign).
 """
 
 from __future__ import annotations
 
+import argparse
+import concurrent.futures as cf
 import sys
 import tempfile
 import time
@@ -52,8 +56,9 @@ def band_coverage(res, name: str) -> float:
     return float(np.max(err / sig[sel]))
 
 
-def main(n: int | None = None) -> list[dict]:
+def main(n: int | None = None, loop_preset: str = "medium") -> list[dict]:
     rows = []
+    pool = cf.ProcessPoolExecutor(2) if loop_preset != "medium" else None
     literature = load_material()
     print(f"{'campaign':36s} {'literature Psi':>14s} {'F':>7s} {'identified Psi':>15s} {'F':>7s}  chosen"
           f"{'':14s} wall [s]  B band: max |err|/sigma  F band max [%]  F warned")
@@ -66,7 +71,8 @@ def main(n: int | None = None) -> list[dict]:
                                            n_currents=N_CURRENTS)
             wall = time.perf_counter() - t0
             t0 = time.perf_counter()
-            loop = loop_on_identified_recordings(folder, res.curve, Path(tmp) / "work", load_tables(truth_dir(name)))
+            loop = loop_on_identified_recordings(folder, res.curve, Path(tmp) / "work", load_tables(truth_dir(name)),
+                                                 preset=loop_preset, executor=pool)
             loop["wall_s"] = time.perf_counter() - t0
         before = prediction_errors(literature, name)
         after = prediction_errors(res.curve, name)
@@ -88,8 +94,8 @@ def main(n: int | None = None) -> list[dict]:
           f"F {max(r['lit_F'] for r in rows) * 100:.1f} %")
     print(f"identification wall time: median {walls[len(walls) // 2]:.0f} s, max {walls[-1]:.0f} s (goal < 60 s)")
     print()
-    print("the loop started from the identified maps (tests/test_loop_identified.py): effects found, pooled held-out "
-          "NRMSE of the bare identified model and of the final one")
+    print(f"the loop started from the identified maps (tests/test_loop_identified.py; maps preset {loop_preset}): "
+          "effects found, pooled held-out NRMSE of the bare identified model and of the final one")
     print(f"{'campaign':36s} {'true effects':24s} {'found':24s} {'before':>7s} {'after':>7s} {'ratio':>6s} wall [s]"
           f"  noise floor")
     good = 0
@@ -111,4 +117,8 @@ def main(n: int | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else None)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("n", nargs="?", type=int, default=None, help="first N campaigns (default all)")
+    ap.add_argument("--loop-preset", default="medium", help="maps preset of the loop (default: the test's medium)")
+    args = ap.parse_args()
+    main(args.n, args.loop_preset)

@@ -1,7 +1,7 @@
 """The identified B(H) holds on campaigns from other rigs, other steels and with undeclared effects.
 
 Twelve campaigns: seven published steels (Modelica FluxTubes records) and five random ones
-(``tests/data/truth-steels``, FEM at a finer, per-stroke mesh: no inverse crime), each on a
+(``tests/data/truth-steels``, FEM at a finer, per-stroke mesh at 32 strokes: no inverse crime), each on a
 randomized protocol (:func:`solenoid_fmu.rig.random_campaign`: other sample rates, shapes, cycles,
 rests, strokes, energized force strokes, voltage offsets) with none, heating, an eddy ladder,
 hysteresis or heating + hysteresis at the rig's realistic sizes (heating: the coil's C_th drawn per

@@ -40,3 +40,18 @@ def test_the_eddy_ladder_names_its_g_eddy_as_the_maps_replacement(rig_maps, rig_
     source = improved.meta["eddy"]["source"]
     assert "replaces the maps' G_eddy" in source and tables.meta["eddy"]["source"] in source
     assert with_effects(tables, {}).meta["eddy"] == tables.meta["eddy"]  # nothing replaced without a refit
+
+
+def test_hysteresis_is_tried_on_its_flux_evidence_alone():
+    """Steel hysteresis shows in the flux-current relation: a candidate that explains the force alone (random-2's
+    clean campaign: a force-map error the stop operators followed along the strokes) is not tried, whatever its
+    pooled score; the same shares on the flux are; other effects count every signal (friction: the force)."""
+    from solenoid_fmu.loop.diagnosis import Candidate
+    from solenoid_fmu.loop.gates import TRY_THRESHOLD, try_score
+
+    force_only = Candidate("hysteresis", score=0.61, explained=0.64, per_signal={"force_N": 0.74, "psi_Wb": 0.016})
+    on_flux = Candidate("hysteresis", score=0.61, explained=0.64, per_signal={"force_N": 0.0, "psi_Wb": 0.74})
+    friction = Candidate("friction", score=0.61, explained=0.64, per_signal={"force_N": 0.74})
+    assert try_score(force_only) == pytest.approx(0.016) and try_score(force_only) < TRY_THRESHOLD
+    assert try_score(on_flux) == pytest.approx(0.74)
+    assert try_score(friction) == pytest.approx(0.74)

@@ -20,7 +20,11 @@ discretization other than the identification's (see ``tests/truthsteels.py``): a
 stroke (no morph), mesh size ``TRUTH_MESH_SIZE`` (0.7; the identification: 2.0, morphed from
 mid-stroke). Grid: the rig's 12 strokes (``default_positions`` over 0.2 ... 3.5 mm) and 31 currents
 (``default_currents(2.5 A, 31, power=2)``), each joined with the yardstick's strokes and currents, so the
-yardstick reads FEM nodes. ``maps.json`` records under ``provenance.test_truth`` that this is a
+yardstick reads FEM nodes; then every stroke interval longer than :data:`MAX_STEP_M` (0.15 mm) split
+evenly: 32 positions (the rig reads its maps linearly in x, and on the 16 positions alone that reading was
+0.5-0.7 % of full scale off the truth's own FEM in the force between them). ``--extend`` adds the positions
+a stored truth lacks (their FEM alone: each stroke is its own mesh and sweep, so the columns are the ones a
+full run computes). ``maps.json`` records under ``provenance.test_truth`` that this is a
 test truth, the mesh and the steel's parameters.
 
 Deterministic: the same code gives the same arrays (``maps.npz`` byte for byte); ``maps.json``
@@ -65,6 +69,12 @@ I_POWER = 2.0
 #: 3201, 1.3 MB).
 NPSI = None
 I_TOP_A = 2.5
+#: Largest spacing of the truth's positions [m]. The rig reads the maps linearly in x between columns
+#: (as the model does), and that reading is the rig's physics: on the rig's 12 strokes + the yardstick's
+#: 4 (spacing up to 0.45 mm) it put the force 0.5-0.7 % of full scale above the truth's own FEM between
+#: columns (random-0 at 0.7 and 1.3 mm, 2 A), more than the identified maps missed that FEM by. Intervals
+#: split to 0.15 mm leave a quarter to a ninth of that.
+MAX_STEP_M = 0.15e-3
 
 
 def parameters(name: str):
@@ -75,10 +85,22 @@ def parameters(name: str):
     return random_steel_parameters(np.random.default_rng(seed), name)
 
 
+def split_intervals(x_m, max_step_m: float = MAX_STEP_M) -> np.ndarray:
+    """``x_m`` with every interval longer than ``max_step_m`` split evenly into the fewest parts that are
+    not (rounded to 1e-12 m)."""
+    x = np.asarray(x_m, dtype=float)
+    parts = [x[:1]]
+    for a, b in zip(x[:-1], x[1:], strict=True):
+        k = max(1, int(np.ceil((b - a) / max_step_m - 1e-9)))
+        parts.append(a + (b - a) * np.arange(1, k + 1) / k)
+    return np.round(np.concatenate(parts), 12)
+
+
 def grid(geometry) -> tuple[np.ndarray, np.ndarray]:
-    """(x [m], i [A]) of the truth maps: the rig's usual grid joined with the yardstick's points."""
+    """(x [m], i [A]) of the truth maps: the rig's usual grid joined with the yardstick's points, its
+    intervals split to :data:`MAX_STEP_M` at most."""
     st = geometry.stroke
-    x = np.union1d(np.round(default_positions(st.min_m, st.max_m, N_X), 12), T.EVAL_STROKES_M)
+    x = split_intervals(np.union1d(np.round(default_positions(st.min_m, st.max_m, N_X), 12), T.EVAL_STROKES_M))
     i = np.union1d(np.round(default_currents(I_TOP_A, N_I, power=I_POWER), 12), T.EVAL_CURRENTS_A)
     return x, i
 
@@ -113,6 +135,41 @@ def make_truth(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, fl
     return name, time.perf_counter() - t0
 
 
+def extend(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, float]:
+    """Add the FEM columns of :func:`grid` that a stored truth lacks (each stroke's FEM is its own mesh and
+    its own sweep, so the columns are those :func:`make_truth` would compute), then invert again."""
+    t0 = time.perf_counter()
+    maps = T.truth_maps.__wrapped__(name)
+    x_all, i_A = grid(load_geometry())
+    if not np.array_equal(np.round(maps.i_A, 12), i_A):
+        raise SystemExit(f"{name}: stored currents differ from grid(): make it again instead")
+    have = np.round(maps.x_m, 12)
+    new_x = [x for x in x_all if not np.any(np.isclose(x, have, rtol=0, atol=1e-12))]
+    curve = load_material(T.truth_dir(name) / "steel.csv")
+    cols = {round(float(x), 12): (maps.psi_ix_Wb[:, j], maps.force_ix_N[:, j], maps.force_stress_ix_N[:, j])
+            for j, x in enumerate(have)}
+    solver_meta = dict(maps.metadata["provenance"]["solver"])
+    for x in new_x:
+        d = T.remeshed_sweep(load_geometry(), curve, float(x), i_A, mesh_size)
+        cols[round(float(x), 12)] = (d["psi_Wb"], d["force_N"], d["force_stress_N"])
+        solver_meta["newton_iterations_total"] += int(d["newton_iterations"].sum())
+        solver_meta["newton_iterations_max"] = max(solver_meta["newton_iterations_max"],
+                                                   int(d["newton_iterations"].max()))
+        if d["newton_recovered"].any():
+            raise SystemExit(f"{name}: Newton needed recovery at x = {x * 1e3:.3f} mm")
+    xs = np.array(sorted(cols))
+    psi, F, Fs = (np.column_stack([cols[x][k] for x in xs]) for k in range(3))
+    solver_meta["operating_points"] = int(psi.size)
+    solver_meta["wall_time_s"] = round(solver_meta["wall_time_s"] + time.perf_counter() - t0, 3)
+    keep = {k: v for k, v in maps.metadata.items()
+            if k not in ("units", "interpolation", "round_trip_max_rel_error",
+                         "round_trip_max_rel_error_between_positions", "arrays")}
+    keep["provenance"] = {**keep["provenance"], "solver": solver_meta}
+    new = invert_maps(xs, maps.i_A, psi, F, Fs, metadata=keep, npsi=NPSI)
+    save_maps(new, T.TRUTHS_DIR / name)
+    return name, time.perf_counter() - t0
+
+
 def reinvert(name: str) -> None:
     """Invert a stored truth's FEM tables again (:data:`NPSI` flux nodes; the last step of
     :func:`make_truth`, which gives the same arrays from the same FEM tables)."""
@@ -132,6 +189,8 @@ def main(argv=None) -> int:
     ap.add_argument("--mesh-size", type=float, default=T.TRUTH_MESH_SIZE)
     ap.add_argument("--reinvert", action="store_true",
                     help="only invert the stored FEM tables again (no FEM; seconds)")
+    ap.add_argument("--extend", action="store_true",
+                    help="only add the positions of grid() a stored truth lacks (FEM at those alone)")
     args = ap.parse_args(argv)
     names = args.names or T.truth_names()
     for n in names:
@@ -142,8 +201,9 @@ def main(argv=None) -> int:
             print(f"{n}: inverted again", flush=True)
         return 0
     t0 = time.perf_counter()
+    job = extend if args.extend else make_truth
     with cf.ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
-        for name, wall in pool.map(make_truth, names, [args.mesh_size] * len(names)):
+        for name, wall in pool.map(job, names, [args.mesh_size] * len(names)):
             print(f"{name}: {wall:.1f} s", flush=True)
     print(f"{len(names)} truths in {time.perf_counter() - t0:.1f} s")
     return 0
