@@ -57,6 +57,7 @@ from .fmu import build_fmu, start_excess_K
 from .identification import identify_from_recordings
 from .loop import FluxCache, ambient_resistance, effects_summary_lines, heating_corrected, improve
 from .maps import (
+    CAMPAIGN_CURRENT_POWER,
     InlineExecutor,
     build_maps,
     default_positions,
@@ -87,11 +88,12 @@ from .report import write_campaign_report
 #: FEM of random-1's identified steel (0.2-2 A): F RMS 0.051 N (max 0.23 N), i_f RMS 0.06 mA, where 24 FEM
 #: positions read linearly gave 0.071 N (0.34 N) and 0.09 mA, and 12 gave 0.30 N (1.35 N) and 0.41 mA.
 PRESETS = {
-    "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10},
+    "full": {"identify_mesh_size": None, "maps_mesh_size": 1.0, "n_x": None, "n_i": None, "n_currents": 10,
+             "i_power": CAMPAIGN_CURRENT_POWER},
     "quick": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 9, "n_i": 12, "n_currents": 6,
               "identify_max_nfev": 16},
     "medium": {"identify_mesh_size": None, "maps_mesh_size": 2.0, "n_x": 12, "refine_x": 3, "n_i": 18,
-               "n_currents": 6, "identify_max_nfev": 16},
+               "n_currents": 6, "identify_max_nfev": 16, "i_power": CAMPAIGN_CURRENT_POWER},
     "smoke": {"identify_mesh_size": 4.0, "maps_mesh_size": 3.0, "n_x": 4, "n_i": 6, "n_currents": 4,
               "identify_max_nfev": 2, "figures": False, "native": False, "prediction": False},
 }
@@ -133,7 +135,7 @@ def _maps_grid(preset: dict, geometry, recordings=()):
     x = None
     if preset["n_x"] is not None:
         x = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, preset["n_x"])
-    return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"])
+    return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"], preset.get("i_power", 1.5))
 
 
 def campaign_maps(geometry, curve, recordings, eddy_recordings=None, *, preset: str = "full", executor=None,

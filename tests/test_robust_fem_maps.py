@@ -18,6 +18,7 @@ from solenoid_fmu.field.linear_solver import BACKENDS as LINEAR_BACKENDS
 from solenoid_fmu.field.material import load_material
 from solenoid_fmu.maps import (
     CAMPAIGN_CURRENT_MARGIN,
+    CAMPAIGN_CURRENT_POWER,
     InlineExecutor,
     build_maps,
     default_currents,
@@ -272,6 +273,10 @@ def _recs(*peaks_A):
 def test_current_grid_keeps_the_rated_range_when_the_campaign_stays_inside():
     grid = maps_current_grid(2.0, _recs(1.5, -1.9, 2.0))
     np.testing.assert_array_equal(grid, default_currents(2.5, 26))  # exactly the maps' default grid
+    # the medium and full presets' spacing: the same number, denser at low currents
+    dense = maps_current_grid(2.0, _recs(1.5, -1.9, 2.0), power=CAMPAIGN_CURRENT_POWER)
+    np.testing.assert_array_equal(dense, default_currents(2.5, 26, CAMPAIGN_CURRENT_POWER))
+    assert CAMPAIGN_CURRENT_POWER == 2.0 and dense[1] < 0.5 * grid[1]
 
 
 def test_current_grid_reaches_1p25_x_the_campaign_peak_with_the_same_first_step():
@@ -280,6 +285,8 @@ def test_current_grid_reaches_1p25_x_the_campaign_peak_with_the_same_first_step(
     assert grid[-1] == pytest.approx(CAMPAIGN_CURRENT_MARGIN * 2.4)
     assert len(grid) == 14  # ceil(11 * 1.2^(2/3)) + 1
     assert grid[1] <= default_currents(2.5, 12)[1] * 1.002
+    dense = maps_current_grid(2.0, _recs(1.0, -2.4), n_i=12, power=2.0)  # top^(1/2): the first step kept too
+    assert len(dense) == 14 and dense[1] <= default_currents(2.5, 12, 2.0)[1] * 1.002  # ceil(11 * 1.2^(1/2)) + 1
     noisy = maps_current_grid(2.0, _recs(2.0018), n_i=12)  # a peak 0.09 % over rated (noise): no extra current
     assert len(noisy) == 12 and noisy[-1] == pytest.approx(1.25 * 2.0018)
 

@@ -25,6 +25,7 @@ from .invert import invert_maps, round_trip_error
 from .io import encode_maps, load_maps, maps_tables, name_problem, save_maps
 from .sweep import (
     CAMPAIGN_CURRENT_MARGIN,
+    CAMPAIGN_CURRENT_POWER,
     DEFAULT_CURRENT_FACTOR,
     DEFAULT_NI,
     InlineExecutor,
@@ -38,6 +39,7 @@ from .tables import CharacteristicMaps
 
 __all__ = [
     "CAMPAIGN_CURRENT_MARGIN",
+    "CAMPAIGN_CURRENT_POWER",
     "CharacteristicMaps",
     "CycleEnergy",
     "DEFAULT_CURRENT_FACTOR",
