@@ -13,8 +13,10 @@ where heating is the rig's only effect, also that error with the rig's own heati
 exact model's (truth maps without and with the rig's heating): how far the 1/3 cut is within reach; and the
 final residuals' white noise alone (the noise floor no model goes below, ``loop.gates.noise_floor``).
 
-Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N] [--loop-preset full]`` (first
-N campaigns; about 1 min each on 2 cores). The loop's maps are the test's ``medium`` preset (FEM mesh 2.0) unless
+Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N] [--loop-preset full] [--fresh]``
+(first N campaigns; about 1 min each on 2 cores). ``--fresh`` draws campaigns the tests never run
+(:func:`fresh_campaigns`: every truth steel, random-5 too, with the effects rotated to other steels and protocol
+seeds from 101): recordings nothing was tuned to. The loop's maps are the test's ``medium`` preset (FEM mesh 2.0) unless
 ``--loop-preset`` names another: ``full`` is the pipeline's default (mesh 1.0; its FEM sweep on two processes,
 about 1.5 min more per campaign).
 """
@@ -56,13 +58,27 @@ def band_coverage(res, name: str) -> float:
     return float(np.max(err / sig[sel]))
 
 
-def main(n: int | None = None, loop_preset: str = "medium") -> list[dict]:
+#: First protocol seed of :func:`fresh_campaigns` (the tests' campaigns use 11-22).
+FRESH_SEED = 101
+
+
+def fresh_campaigns() -> list[tuple[str, str, int]]:
+    """Campaigns the tests never draw: each of the tests' steels and random-5 (in no test) with the effect set of
+    the next campaign in :data:`steelcampaigns.CAMPAIGNS` (so each steel meets another
+    effect), on protocol seeds :data:`FRESH_SEED`, :data:`FRESH_SEED` + 1, ..."""
+    names = [c[0] for c in CAMPAIGNS] + ["random-5"]
+    effects = [c[1] for c in CAMPAIGNS]
+    return [(name, effects[(k + 1) % len(effects)], FRESH_SEED + k) for k, name in enumerate(names)]
+
+
+def main(n: int | None = None, loop_preset: str = "medium", fresh: bool = False) -> list[dict]:
     rows = []
+    campaigns = fresh_campaigns() if fresh else CAMPAIGNS
     pool = cf.ProcessPoolExecutor(2) if loop_preset != "medium" else None
     literature = load_material()
     print(f"{'campaign':36s} {'literature Psi':>14s} {'F':>7s} {'identified Psi':>15s} {'F':>7s}  chosen"
           f"{'':14s} wall [s]  B band: max |err|/sigma  F band max [%]  F warned")
-    for name, effects, seed in CAMPAIGNS[:n]:
+    for name, effects, seed in campaigns[:n]:
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "campaign"
             random_campaign(load_tables(truth_dir(name)), folder, effects, seed=seed, max_samples=SAMPLES)
@@ -120,5 +136,6 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("n", nargs="?", type=int, default=None, help="first N campaigns (default all)")
     ap.add_argument("--loop-preset", default="medium", help="maps preset of the loop (default: the test's medium)")
+    ap.add_argument("--fresh", action="store_true", help="campaigns the tests never draw (fresh_campaigns)")
     args = ap.parse_args()
-    main(args.n, args.loop_preset)
+    main(args.n, args.loop_preset, args.fresh)

@@ -58,6 +58,7 @@ from .identification import identify_from_recordings
 from .loop import FluxCache, ambient_resistance, effects_summary_lines, heating_corrected, improve
 from .maps import (
     CAMPAIGN_CURRENT_POWER,
+    DEFAULT_CURRENT_POWER,
     InlineExecutor,
     build_maps,
     default_positions,
@@ -135,7 +136,8 @@ def _maps_grid(preset: dict, geometry, recordings=()):
     x = None
     if preset["n_x"] is not None:
         x = default_positions(geometry.stroke.min_m, geometry.stroke.max_m, preset["n_x"])
-    return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"], preset.get("i_power", 1.5))
+    power = preset.get("i_power", DEFAULT_CURRENT_POWER)
+    return x, maps_current_grid(geometry.coil.max_current_A, recordings, preset["n_i"], power)
 
 
 def campaign_maps(geometry, curve, recordings, eddy_recordings=None, *, preset: str = "full", executor=None,

@@ -66,7 +66,7 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
     Raises
     ------
     RecordingError
-        No ``flux`` recording among ``recordings`` (or unreadable recordings).
+        No ``flux`` recording (or unreadable ones), or none whose branches give a commutation curve.
     """
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     flux = [r for r in recs if r.kind == "flux"]
@@ -131,6 +131,8 @@ def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size
     # the coil's heating rate from every current-driven recording at a fixed stroke (a ramp's hold pins it)
     heat = [r for r in recs if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
     pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy, heat_recs=heat)
+    if not details["strokes"]:
+        raise RecordingError("identify", [n for n in notes if n.startswith("flux: left out")])
     fpts, fnotes = force_points(force_recs)
     hold_recs = [r for r in recs if r.kind in HOLD_KINDS and r.voltage_V is not None]
     remanence = max((float(np.max(d["half_width_Wb"], initial=0.0)) for d in details["strokes"].values()),

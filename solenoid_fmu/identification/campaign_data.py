@@ -84,6 +84,8 @@ LOOP_NEAR_ORIGIN = 5.0
 HOLD_KINDS = ("ramp", "voltage_step")
 #: Positions taken from each force-stroke curve (evenly over the range passed both ways).
 FORCE_POSITIONS = 3
+#: Fewest points of a stroke's commutation curve (on its 101-point grid) for it to give flux points.
+MIN_CURVE_POINTS = 5
 
 
 @dataclass(frozen=True)
@@ -184,11 +186,15 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
     n_each = n_currents if len(ccs) == 1 else max(5, -(-2 * n_currents // (len(ccs) + 1)))
     for key, cc in sorted(ccs.items()):
         com_i, com_psi, half = corrected_curve(cc, G)
+        x = cc.position_m
+        names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))
+        if com_i.size < MIN_CURVE_POINTS:
+            notes.append(f"flux: left out {names} at {x * 1e3:.3f} mm: its branches give {com_i.size} point(s) of a "
+                         f"commutation curve, fewer than {MIN_CURVE_POINTS}")
+            continue
         i_sel, psi_sel = choose(com_i, com_psi, n_each)
         half_w = np.interp(i_sel, com_i, half)
         sigma = flux_sigma(com_i, com_psi, half, i_sel, _track_sigma_rel(cc, camp) if heated else 0.0)
-        x = cc.position_m
-        names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))
         for i, p, s in zip(i_sel, psi_sel, sigma, strict=True):
             points.append(MeasuredPoint("psi", float(i), x, float(p), float(s), f"flux@{x * 1e3:.3f}mm", names))
         details[key] = {"cc": cc, "i_A": i_sel, "psi_Wb": psi_sel, "sigma_Wb": sigma, "half_width_Wb": half_w}

@@ -31,6 +31,7 @@ from .tables import CharacteristicMaps
 
 __all__ = [
     "DEFAULT_CURRENT_FACTOR",
+    "DEFAULT_CURRENT_POWER",
     "DEFAULT_NI",
     "DEFAULT_NX",
     "MAX_GRID_POINTS",
@@ -45,6 +46,9 @@ __all__ = [
 DEFAULT_NX = 27
 DEFAULT_NI = 26
 DEFAULT_CURRENT_FACTOR = 1.25
+#: Exponent of the default current spacing (:func:`default_currents`): the shipped maps, the rig's CLI and the
+#: coarse presets (``quick``, ``smoke``); finer campaign grids take :data:`CAMPAIGN_CURRENT_POWER`.
+DEFAULT_CURRENT_POWER = 1.5
 #: Most points of one sweep grid (positions or currents): 1000 x 1000 FEM solves is already days.
 MAX_GRID_POINTS = 1000
 #: The checkout (the package's parent folder): source paths inside it are stored relative to it.
@@ -157,7 +161,7 @@ def default_positions(x_min_m: float, x_max_m: float, n: int = DEFAULT_NX) -> np
     return x
 
 
-def default_currents(i_top_A: float, n: int = DEFAULT_NI, power: float = 1.5) -> np.ndarray:
+def default_currents(i_top_A: float, n: int = DEFAULT_NI, power: float = DEFAULT_CURRENT_POWER) -> np.ndarray:
     """Default sweep currents [A]: ``i_top (k / (n - 1))^power``, k = 0 .. n - 1.
 
     Denser at low currents, where the iron leaves its linear range and Psi(i) and F(i) bend
@@ -179,7 +183,8 @@ CAMPAIGN_CURRENT_MARGIN = 1.25
 CAMPAIGN_CURRENT_POWER = 2.0
 
 
-def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None, power: float = 1.5) -> np.ndarray:
+def maps_current_grid(rated_current_A: float, recordings, n_i: int | None = None,
+                      power: float = DEFAULT_CURRENT_POWER) -> np.ndarray:
     """Currents [A] of the maps sweep, from 0 to the larger of ``DEFAULT_CURRENT_FACTOR`` (1.25) x the coil's
     rated current and ``CAMPAIGN_CURRENT_MARGIN`` (1.25) x the largest |current| in ``recordings``.
 

@@ -40,6 +40,26 @@ class FluxBranch:
     stop: int
 
 
+#: A current peak counts when the current falls by this share of the recording's top current on both sides.
+PEAK_PROMINENCE = 0.2
+
+
+def _one_per_top(peaks: list[int], i_s: np.ndarray, dip: float) -> list[int]:
+    """Peaks (sample indices, increasing) with those on one top merged: two neighbours between which the
+    current ``i_s`` [A] does not fall by ``dip`` [A] below the lower of them are one peak, the higher one (the
+    first of equals). ``find_peaks`` gives each of two equal samples on a hold at the top the full prominence
+    (it measures a peak against a strictly higher one): a quantized current held at its top gave two peaks
+    a few samples apart and a branch pair of two samples between them."""
+    kept: list[int] = []
+    for p in peaks:
+        if kept and float(np.min(i_s[kept[-1]:p + 1])) > min(i_s[kept[-1]], i_s[p]) - dip:
+            if i_s[p] > i_s[kept[-1]]:
+                kept[-1] = p
+            continue
+        kept.append(p)
+    return kept
+
+
 def split_branches(i, i_s, psi, thr, k) -> list[FluxBranch]:
     """Ascending and descending branch for every positive current peak."""
     from scipy.signal import find_peaks  # heavy (about 0.8 s): loaded on first use
@@ -47,11 +67,12 @@ def split_branches(i, i_s, psi, thr, k) -> list[FluxBranch]:
     i_top = float(np.max(i_s))
     if i_top <= 0:
         return []
-    peaks, _ = find_peaks(i_s, prominence=0.2 * i_top)
+    peaks, _ = find_peaks(i_s, prominence=PEAK_PROMINENCE * i_top)
     n = i.size
     # each peak refined to the highest smoothed sample within +-k; two peaks that refine onto each
     # other (or cross) count once, so that every valley between two peaks is a non-empty range
     refined = sorted({max(0, p - k) + int(np.argmax(i_s[max(0, p - k):min(n, p + k + 1)])) for p in peaks.tolist()})
+    refined = _one_per_top(refined, i_s, PEAK_PROMINENCE * i_top)
     branches: list[FluxBranch] = []
     for j, p in enumerate(refined):
         lo, hi = max(0, p - k), min(n, p + k + 1)

@@ -135,6 +135,16 @@ def make_truth(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, fl
     return name, time.perf_counter() - t0
 
 
+#: Metadata keys :func:`solenoid_fmu.maps.invert_maps` writes itself (dropped before inverting a stored truth again).
+INVERSION_KEYS = ("units", "interpolation", "round_trip_max_rel_error", "round_trip_max_rel_error_between_positions",
+                  "arrays")
+
+
+def _kept_metadata(maps) -> dict:
+    """A stored truth's metadata without the keys its inversion writes (:data:`INVERSION_KEYS`)."""
+    return {k: v for k, v in maps.metadata.items() if k not in INVERSION_KEYS}
+
+
 def extend(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, float]:
     """Add the FEM columns of :func:`grid` that a stored truth lacks (each stroke's FEM is its own mesh and
     its own sweep, so the columns are those :func:`make_truth` would compute), then invert again."""
@@ -161,9 +171,7 @@ def extend(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, float]
     psi, F, Fs = (np.column_stack([cols[x][k] for x in xs]) for k in range(3))
     solver_meta["operating_points"] = int(psi.size)
     solver_meta["wall_time_s"] = round(solver_meta["wall_time_s"] + time.perf_counter() - t0, 3)
-    keep = {k: v for k, v in maps.metadata.items()
-            if k not in ("units", "interpolation", "round_trip_max_rel_error",
-                         "round_trip_max_rel_error_between_positions", "arrays")}
+    keep = _kept_metadata(maps)
     keep["provenance"] = {**keep["provenance"], "solver": solver_meta}
     new = invert_maps(xs, maps.i_A, psi, F, Fs, metadata=keep, npsi=NPSI)
     save_maps(new, T.TRUTHS_DIR / name)
@@ -174,9 +182,7 @@ def reinvert(name: str) -> None:
     """Invert a stored truth's FEM tables again (:data:`NPSI` flux nodes; the last step of
     :func:`make_truth`, which gives the same arrays from the same FEM tables)."""
     maps = T.truth_maps.__wrapped__(name)
-    keep = {k: v for k, v in maps.metadata.items()
-            if k not in ("units", "interpolation", "round_trip_max_rel_error",
-                         "round_trip_max_rel_error_between_positions", "arrays")}
+    keep = _kept_metadata(maps)
     new = invert_maps(maps.x_m, maps.i_A, maps.psi_ix_Wb, maps.force_ix_N, maps.force_stress_ix_N, metadata=keep,
                       npsi=NPSI)
     save_maps(new, T.TRUTHS_DIR / name)
