@@ -302,18 +302,31 @@ def _points(curve, sigma_rel, mesh_size=3.0):
 
 
 def test_stage_2_runs_only_where_stage_1_leaves_something_to_predict():
-    """joint.STAGE1_ENOUGH_HELD_OUT: points a scaled and stretched literature curve predicts held out within their
+    """joint.stage1_enough: points a scaled and stretched literature curve predicts held out within their
     sigma stop after stage 1 (its two parameters fit them); points of another shape, 0.2 % sigma, go on to stage 2."""
-    from solenoid_fmu.identification.joint import STAGE1_ENOUGH_HELD_OUT, identify_joint
+    from solenoid_fmu.identification.joint import STAGE1_ENOUGH_HELD_OUT, identify_joint, stage1_enough
 
     geom = load_geometry()
     lit = load_material()
     near = identify_joint(_points(scaled_curve(lit, np.log(1.05), np.log(0.8)), 0.002), geom, lit, 3.0, max_nfev=3)
     assert list(near.candidates) == ["stage 1"] and near.chosen == "stage 1"
-    assert near.candidates["stage 1"]["rms_out"] <= STAGE1_ENOUGH_HELD_OUT
+    assert stage1_enough(near.candidates["stage 1"]["r_out"])
     other = identify_joint(_points(_hill_steel(), 0.002), geom, lit, 3.0, max_nfev=3)
     assert other.candidates["stage 1"]["rms_out"] > STAGE1_ENOUGH_HELD_OUT
     assert "stage 2 (prior 1)" in other.candidates
+
+
+def test_stage_1_is_enough_only_clearly_inside_the_noise_of_its_held_out_rms():
+    """An RMS just under 1 sigma over 20 points is within the RMS's own scatter (about 0.16) of a wrong shape: stage
+    2 runs (random-0 #108 of the fresh draw stopped at 0.955 with F 2.6 % off); well under it, or over many points,
+    stage 1 is enough."""
+    from solenoid_fmu.identification.joint import stage1_enough
+
+    unit = np.resize([1.0, -1.0], 20)
+    assert not stage1_enough(0.955 * unit)
+    assert stage1_enough(0.44 * unit)
+    assert stage1_enough(0.955 * np.resize(unit, 2000)) and not stage1_enough(1.01 * np.resize(unit, 2000))
+    assert not stage1_enough([])
 
 
 def test_the_band_belongs_to_the_chosen_curve_when_stage_2_loses(monkeypatch):
