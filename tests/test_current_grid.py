@@ -11,7 +11,7 @@ preset's 18 currents at its ``i_power``) must read it within 1 % in Psi and 0.25
 import numpy as np
 from truthsteels import truth_curve
 
-from solenoid_fmu.field import load_geometry
+from solenoid_fmu.field import load_geometry, sweep_currents
 from solenoid_fmu.maps import (
     CAMPAIGN_CURRENT_POWER,
     InlineExecutor,
@@ -21,7 +21,6 @@ from solenoid_fmu.maps import (
     maps_current_grid,
     psi_at,
 )
-from solenoid_fmu.maps.sweep import _default_sweep
 from solenoid_fmu.pipeline import PRESETS
 
 X_M = 0.5e-3  # where the force is steepest in i at the knee (the largest error of stop 40's measurement)
@@ -39,7 +38,7 @@ def _errors(geometry, curve, i_grid, ref, i_ref):
 def test_the_campaign_current_grid_reads_the_fem_between_its_currents():
     geometry, curve = load_geometry(), truth_curve("random-0")
     i_ref = np.linspace(0.02, 2.0, 60)
-    ref = _default_sweep()(geometry, curve, X_M, i_ref, 2.0)
+    ref = sweep_currents(geometry, curve, X_M, i_ref, 2.0)
     grid = maps_current_grid(geometry.coil.max_current_A, [], n_i=PRESETS["medium"]["n_i"],
                              power=PRESETS["medium"]["i_power"])
     psi_err, f_err = _errors(geometry, curve, grid, ref, i_ref)

@@ -132,7 +132,7 @@ def _by_joint_fit(recs: list, flux: list, unusable: list, geom, start, mesh_size
     heat = [r for r in recs if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
     pts, notes, details = flux_points(flux, n_currents, choose_currents, eddy_recs=eddy, heat_recs=heat)
     if not details["strokes"]:
-        raise RecordingError("identify", [n for n in notes if n.startswith("flux: left out")])
+        raise RecordingError("identify", details["left_out"])
     fpts, fnotes = force_points(force_recs)
     hold_recs = [r for r in recs if r.kind in HOLD_KINDS and r.voltage_V is not None]
     remanence = max((float(np.max(d["half_width_Wb"], initial=0.0)) for d in details["strokes"].values()),

@@ -167,7 +167,7 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
     (fast triangles from rest) only help to tell eddy loops from hysteresis; ``heat_recs`` (other
     current-driven recordings at a fixed stroke: ramps, eddy triangles) only help to measure the coil's
     heating. Returns the points, notes and per-stroke details (``curves``: commutation curves for the
-    report).
+    report; ``left_out``: the strokes whose branches give no curve, :data:`MIN_CURVE_POINTS`).
     """
     groups = groups_of(recs)
     extra = [r for r in heat_recs if all(r is not q for q in recs)]
@@ -181,7 +181,7 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
     G, note = eddy_split(all_results)
     notes.append(note)
     points: list[MeasuredPoint] = []
-    details = {}
+    details, left_out = {}, []
     # with several strokes fewer currents each: the strokes pin the curve together (FEM cost ~ points)
     n_each = n_currents if len(ccs) == 1 else max(5, -(-2 * n_currents // (len(ccs) + 1)))
     for key, cc in sorted(ccs.items()):
@@ -189,8 +189,9 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
         x = cc.position_m
         names = ",".join(sorted({r.path.name if r.path else r.label() for r in groups[key]}))
         if com_i.size < MIN_CURVE_POINTS:
-            notes.append(f"flux: left out {names} at {x * 1e3:.3f} mm: its branches give {com_i.size} point(s) of a "
-                         f"commutation curve, fewer than {MIN_CURVE_POINTS}")
+            left_out.append(f"flux: left out {names} at {x * 1e3:.3f} mm: its branches give {com_i.size} point(s) "
+                            f"of a commutation curve, fewer than {MIN_CURVE_POINTS}")
+            notes.append(left_out[-1])
             continue
         i_sel, psi_sel = choose(com_i, com_psi, n_each)
         half_w = np.interp(i_sel, com_i, half)
@@ -204,7 +205,7 @@ def flux_points(recs, n_currents: int, choose, eddy_recs=(),
         points = [MeasuredPoint(p.kind, p.i_A, p.x_m, p.value, p.sigma, f"{p.group}/band{b}", p.source)
                   for p, b in zip(points, band, strict=True)]
     return points, notes, {"G_eddy_S": G, "strokes": details, "resistance": camp.summary(), "heated": heated,
-                             "camp": camp}
+                             "camp": camp, "left_out": left_out}
 
 
 def flux_sigma(com_i, com_psi, half, i_sel, track_rel: float = 0.0) -> np.ndarray:
