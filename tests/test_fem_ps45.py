@@ -125,3 +125,38 @@ def test_non_convergence_raises_with_residual_history(solver, monkeypatch):
     with pytest.raises(SolverError, match=r"did not converge at i = 2 A, x = 0.7 mm after 2 iterations; "
                        r"relative residuals: 1\.00e\+00, \d"):
         solver.solve(2.0, 0.7e-3)
+
+
+def test_sweep_extrapolates_in_current_to_the_same_solutions_in_fewer_iterations(ps45):
+    """:meth:`Solver.sweep` starts Newton from the linear extrapolation of the two previous currents' solutions:
+    the same flux and force as solves started from the previous solution alone (to the Newton tolerance), in fewer
+    iterations over a map's column of currents (measured: 199 against 221 on three gaps, mesh size 2)."""
+    coarse = Solver(*ps45, mesh_size=2.0)
+    i_A = np.concatenate([[0.0], np.linspace(0.05, 1.0, 17) * 2.6])
+    its_sweep = its_prev = 0
+    for x in (0.6e-3, 1.2e-3, 2.5e-3):
+        sw = coarse.sweep(x, i_A)
+        u, psi, force = None, [], []
+        for i in i_A:
+            s = coarse.solve(float(i), x, u0=u)
+            u = s.u if i else None
+            its_prev += s.newton_iterations
+            psi.append(s.psi_Wb)
+            force.append(s.force_coenergy_N)
+        its_sweep += int(sw["newton_iterations"].sum())
+        np.testing.assert_allclose(sw["psi_Wb"][1:], psi[1:], rtol=1e-9)
+        np.testing.assert_allclose(sw["force_N"][1:], force[1:], rtol=1e-7, atol=1e-9)
+    assert its_sweep < 0.95 * its_prev, (its_sweep, its_prev)
+
+
+def test_single_threaded_limits_the_thread_pools_inside_and_restores_them_after():
+    from threadpoolctl import threadpool_info
+
+    from solenoid_fmu.field import single_threaded
+
+    before = {p["filepath"]: p["num_threads"] for p in threadpool_info()}
+    with single_threaded():
+        inside = {p["filepath"]: p["num_threads"] for p in threadpool_info()}
+    after = {p["filepath"]: p["num_threads"] for p in threadpool_info()}
+    assert inside and set(inside.values()) == {1}, inside
+    assert all(after[k] == n for k, n in before.items()), (before, after)  # (MKL loads its OpenMP on first use)

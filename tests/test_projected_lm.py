@@ -48,3 +48,42 @@ def test_box_bounds_hold_at_every_evaluation():
     pts = np.array(seen)
     assert np.all(pts >= lo) and np.all(pts <= hi)
     assert abs(out.x[0] - 0.5) < 1e-6 and abs(out.x[1] - 0.25) < 1e-3  # the constrained minimum on x0 = 0.5
+
+
+def test_min_decrease_stops_at_the_first_step_that_gains_less():
+    """``min_decrease``: the fit goes on while each accepted step lowers the cost by at least that much, or by at
+    least :data:`~solenoid_fmu.identification.fit.MIN_DECREASE_SHARE` of the cost, and stops at the first that gains
+    less than both (stage 2's crawl along a valley, :data:`~solenoid_fmu.identification.joint.STAGE2_MIN_DECREASE`);
+    without it, Rosenbrock's valley runs to its minimum."""
+    from solenoid_fmu.identification.fit import MIN_DECREASE_SHARE
+
+    def valley():
+        """Rosenbrock's valley beside a residual no step can lower (cost 20 at the minimum (1, 1))."""
+        rosen, rosen_jac, seen = _rosenbrock()
+
+        def res(x):
+            return np.concatenate([rosen(x), [np.sqrt(20.0)]])
+
+        def jac(x):
+            return np.vstack([rosen_jac(x), [[0.0, 0.0]]])
+        return res, jac, seen
+
+    def cost(x):
+        return float(10.0**2 * (x[1] - x[0] ** 2) ** 2 + (1.0 - x[0]) ** 2 + 20.0)
+
+    res, jac, seen = valley()
+    full = projected_lm(res, jac, np.array([-1.2, 1.0]), None, None, 200, ftol=1e-14, project=lambda v: v)
+    n_full = len(seen)
+    res, jac, seen = valley()
+    out = projected_lm(res, jac, np.array([-1.2, 1.0]), None, None, 200, ftol=1e-14, project=lambda v: v,
+                       min_decrease=0.1)
+    assert out.status == 2 and len(seen) < n_full and np.max(np.abs(full.x - 1.0)) < 1e-6
+    # the accepted steps (each trial that lowers the best cost so far): what each gained, and its threshold
+    best, gains, limits = cost(seen[0]), [], []
+    for x in seen[1:]:
+        if cost(x) < best:
+            gains.append(best - cost(x))
+            limits.append(min(0.1, MIN_DECREASE_SHARE * best))
+            best = cost(x)
+    assert gains[-1] < limits[-1] and all(g >= t for g, t in zip(gains[:-1], limits[:-1], strict=True)), (gains, limits)
+    assert best == cost(out.x) and best > 20.0 + 1e-3  # stopped short of the minimum, where the steps gain little

@@ -18,9 +18,8 @@ Units: SI (i in A, x in m, Psi in Wb, F in N).
 from __future__ import annotations
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
-from ..field import Solver
+from ..field import Solver, single_threaded
 from .point_pool import WorkerPool, split_by_stroke
 
 __all__ = ["PointModel", "FORCE_FD_DX_M", "NEWTON_RTOL_IDENTIFY"]
@@ -188,7 +187,7 @@ class PointModel:
         flux points ``{k: (|B| [T], adjoint weights)}`` at the steel's quadrature points, force points
         ``[(k, dx [m], (|B|, volumes) at x, (|B|, volumes) at x + dx)]`` (one solve each)."""
         s = self.solver
-        with threadpool_limits(limits=1):
+        with single_threaded():
             # flux points: adjoint (K_t lambda = psi weights), dPsi = -int grad(lambda).grad(u) dnu/r
             flux = {}
             for k in self.order:
@@ -241,7 +240,7 @@ class PointModel:
                 force += [(g[k], dx, f0, f1) for k, dx, f0, f1 in fo]
         pairs = self._perturbed(theta, h)
         J = np.zeros((self.n, len(theta)))
-        with threadpool_limits(limits=1):
+        with single_threaded():
             if flux:
                 B_top = max(float(np.max(b)) for b, _ in flux.values())
                 dnu = _GridTable(B_top, [lambda B, c=c: c.nu_of_b2(B * B)[0] for c in _flat(pairs)], h)

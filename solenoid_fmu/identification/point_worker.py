@@ -22,8 +22,7 @@ from __future__ import annotations
 import os
 import sys
 
-from threadpoolctl import threadpool_limits
-
+from ..field import single_threaded
 from .point_model import PointModel
 from .point_pool import receive, send
 
@@ -38,7 +37,7 @@ def serve(inp, out) -> None:
     """Answer requests from ``inp`` on ``out`` (binary streams) until ``stop`` or the end of ``inp``."""
     holder = {}
     _, geometry, points, mesh_size, start_curve = receive(inp)
-    with threadpool_limits(limits=1):
+    with single_threaded():
         pm = PointModel(geometry, points, lambda _theta: holder["curve"], mesh_size, start_curve)
         send(out, ("ok", None, _counters(pm)))
         while True:

@@ -20,8 +20,7 @@ import time
 import uuid
 from pathlib import Path
 
-from threadpoolctl import threadpool_limits
-
+from ..field import single_threaded
 from ..fileio import write_files
 from ..pipeline import run_pipeline
 from .features import unit_features
@@ -87,7 +86,7 @@ def run_unit(name: str, files: dict, *, preset: str = "quick", geometry_text: st
               "input_sha256": input_sha256, "preset": preset, "campaign": campaign_label,
               "worker": f"{socket.gethostname()}:{os.getpid()}", "wall_s": None}
     out_files: dict = {}
-    with tempfile.TemporaryDirectory(prefix="solenoid-lot-") as tmp, threadpool_limits(limits=1):
+    with tempfile.TemporaryDirectory(prefix="solenoid-lot-") as tmp, single_threaded():
         camp, out = Path(tmp) / "in" / name, Path(tmp) / "out" / name
         try:
             write_files(camp, files, "campaign file")
