@@ -14,6 +14,7 @@ from solenoid_fmu.identification.parametrization import fit_to_curve
 from solenoid_fmu.identification.point_model import PointModel
 from solenoid_fmu.identification.prediction import (
     GOAL_F_REL,
+    band_prior_std,
     prediction_band,
     prediction_grid,
     prediction_warnings,
@@ -41,7 +42,7 @@ def _fit(currents, sigma_rel=2e-3):
     pm = PointModel(load_geometry(), pts, model.curve, MESH, lit, workers=1)
     v = pm.values(theta)
     J_w = pm.jacobian(theta) / (sigma_rel * np.abs(v))[:, None]
-    return SimpleNamespace(model=model, theta=theta, J_w=J_w, curve=model.curve(theta))
+    return SimpleNamespace(model=model, theta=theta, theta_stage1=theta, J_w=J_w, curve=model.curve(theta))
 
 
 def test_the_band_narrows_where_the_campaign_has_data_and_warns_where_it_has_none():
@@ -64,3 +65,24 @@ def test_the_band_narrows_where_the_campaign_has_data_and_warns_where_it_has_non
     noisy = prediction_band(_fit((1.0, 1.5, 2.0), sigma_rel=8e-3), geom, MESH, 1.0, GRID_I, GRID_X)
     assert np.all(noisy["F_sigma_rel"][-1] > 1.5 * F_hi[-1])
     np.testing.assert_allclose(noisy["F_N"], high["F_N"], rtol=1e-6)  # the values do not depend on the sigmas
+
+
+def test_the_prior_widens_where_the_fit_moved_the_curve_far_from_stage_1():
+    """:func:`band_prior_std`: the fixed +-0.3 in ln chi where the chosen curve is stage 1's; where stage 2 moved ln
+    chi by 1.2 RMS from it, 1.2, and the band widens where the prior sets it (0.25 A: no data) several times more
+    than where the data do (2 A)."""
+    from solenoid_fmu.identification.uncertainty import PRIOR_LN_CHI_STD
+
+    geom = load_geometry()
+    fit = _fit((1.0, 1.5, 2.0))
+    assert band_prior_std(fit) == PRIOR_LN_CHI_STD
+    moved = SimpleNamespace(**vars(fit))
+    moved.theta_stage1 = np.array(fit.theta, dtype=float)
+    moved.theta_stage1[0] += 1.2  # the same increments: ln chi 1.2 higher at every node
+    assert abs(band_prior_std(moved) - 1.2) < 1e-12
+    near = prediction_band(fit, geom, MESH, 1.0, GRID_I, GRID_X)
+    wide = prediction_band(moved, geom, MESH, 1.0, GRID_I, GRID_X)
+    assert abs(wide["prior_ln_chi_std"] - 1.2) < 1e-12 and near["prior_ln_chi_std"] == PRIOR_LN_CHI_STD
+    grow = wide["F_sigma_rel"] / near["F_sigma_rel"]
+    assert np.all(grow[0] > 2.0) and np.all(grow[0] > 1.5 * grow[-1]), grow
+    np.testing.assert_allclose(wide["F_N"], near["F_N"], rtol=1e-9)  # the band, not the prediction

@@ -54,22 +54,24 @@ def B_uncertainty(model, theta, J_rel, sigma_rel, H) -> tuple[np.ndarray, np.nda
     return sd[0], sd[1]
 
 
-def _prior_precision(model, P: int) -> np.ndarray:
+def _prior_precision(model, P: int, prior_std: float = PRIOR_LN_CHI_STD) -> np.ndarray:
     """The prior's precision in the parameters theta: ln chi at every node and the tail slope, independent,
-    std :data:`PRIOR_LN_CHI_STD` (theta holds ln chi at the first node and the increments after it)."""
+    std ``prior_std`` (default :data:`PRIOR_LN_CHI_STD`; theta holds ln chi at the first node and the increments
+    after it)."""
     m = len(model.H_nodes)
     A = np.zeros((m + 1, P))  # ln chi nodes and the tail slope as linear functions of theta
     A[:m, 0] = 1.0
     for j in range(1, m):
         A[j, 1 : j + 1] = 1.0
     A[m, m] = 1.0
-    return A.T @ A / PRIOR_LN_CHI_STD**2
+    return A.T @ A / prior_std**2
 
 
-def posterior_covariance(model, J_rel, sigma_rel) -> np.ndarray:
-    """Covariance of the parameters theta after the data: (J^T J / sigma^2 + Lambda)^-1 (:func:`B_uncertainty`)."""
+def posterior_covariance(model, J_rel, sigma_rel, prior_std: float = PRIOR_LN_CHI_STD) -> np.ndarray:
+    """Covariance of the parameters theta after the data: (J^T J / sigma^2 + Lambda)^-1 (:func:`B_uncertainty`),
+    the prior's std on ln chi at every node ``prior_std``."""
     J_rel = np.asarray(J_rel, dtype=float)
-    return np.linalg.inv(J_rel.T @ J_rel / sigma_rel**2 + _prior_precision(model, J_rel.shape[1]))
+    return np.linalg.inv(J_rel.T @ J_rel / sigma_rel**2 + _prior_precision(model, J_rel.shape[1], prior_std))
 
 
 def identified_range(model, theta, J_rel, rms_rel, H_max) -> tuple[tuple[float, float], np.ndarray, np.ndarray]:
