@@ -50,10 +50,9 @@ def band_prior_std(fit) -> float:
     campaigns and thirteen fresh ones) the truth's largest error on the grid lay at a median 3.45 of its sigmas
     (the largest of 20 normal deviates is about 2.2), and two campaigns 2.7 % and 4.2 % off in F went unwarned,
     while stage 2 had moved ln chi by 0.3-4.7 RMS from stage 1. With this scale: median 2.73, every miss warned."""
-    m = len(fit.model.H_nodes)
     move = fit.model.log_chi_nodes(np.asarray(fit.theta, dtype=float)) - fit.model.log_chi_nodes(
         np.asarray(fit.theta_stage1, dtype=float))
-    return float(max(PRIOR_LN_CHI_STD, np.sqrt(np.mean(move[:m] ** 2))))
+    return float(max(PRIOR_LN_CHI_STD, np.sqrt(np.mean(move**2))))
 
 
 def prediction_band(fit, geometry, mesh_size: float, noise: float, i_A=None, x_m=None, workers: int = 1) -> dict:
