@@ -12,14 +12,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import RecordingError
 from .format import Recording
 
-__all__ = ["Conditioned", "condition", "noise_std", "smooth", "rest_runs", "stationary", "offset_model",
-           "plateaus", "hold_segments"]
+__all__ = ["Conditioned", "condition", "noise_std", "smooth", "rest_runs", "stationary", "rest_level", "RestLevel",
+           "offset_model", "plateaus", "hold_segments", "SETTLING_F", "DRIFT_SIGMAS"]
 
 
 def noise_std(y: np.ndarray) -> float:
@@ -59,42 +60,114 @@ def rest_runs(i_s: np.ndarray, thr_A: float, min_len: int) -> tuple[slice | None
     return head, tail
 
 
-def stationary(u: np.ndarray, u_scale: float) -> bool:
-    """True when the two halves of a rest phase's voltage agree within 5 standard errors or within
-    0.1 % of the recording's largest voltage ``u_scale`` [V] (a slow offset drift of the DAQ).
-
-    A rest phase right after an excitation may still carry an induced voltage that decays (eddy
-    currents, a hysteresis creeping to remanence): such a phase does not give the offset.
-    """
-    n = u.size // 2
-    if n < 4:
-        return True
-    a, b = u[:n], u[-n:]
-    se = math.sqrt((float(np.var(a)) + float(np.var(b))) / n)
-    return abs(float(np.mean(a)) - float(np.mean(b))) <= max(5.0 * se, 1e-3 * u_scale, 1e-12)
+#: Time constants the settling fit of a rest phase tries, as multiples of the sample interval (log grid).
+SETTLING_TAU_SAMPLES = np.geomspace(1.0, 1000.0, 31)
+#: A richer model of a rest phase's voltage (a decay against a line, a line against a constant) is taken when it
+#: lowers the sum of squares by more than this many residual variances (one extra parameter each: the 0.1 %
+#: point of F(1, n) is about 11; the decay takes the best of the grid's time constants, hence the margin).
+SETTLING_F = 12.0
+#: Two rest phases' offsets differ significantly (a drift of the DAQ) beyond this many combined sigmas.
+DRIFT_SIGMAS = 3.0
 
 
-def offset_model(t, u, head, tail):
-    """Voltage offset (a, b, t0, n, se): U_off(t) = a + b (t - t0), from 10 %-trimmed means of U [V]
-    over the ``n`` (0-2) rest phases used; ``se`` [V] the larger standard error of those means.
+class RestLevel(NamedTuple):
+    """What a rest phase says about the voltage offset (:func:`rest_level`)."""
 
-    U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
-    A rest phase whose voltage is still settling (:func:`stationary`) is not used.
+    level_V: float       #: the offset the phase measures (settled or trending: its mean; settling: the asymptote)
+    se_V: float          #: its standard error
+    state: str           #: "flat", "trending" (a straight line beats a constant) or "settling" (a decay beats a line)
+    slope_V_per_s: float  #: the straight line's slope
+    slope_se_V_per_s: float
+
+
+def stationary(u: np.ndarray, u_scale: float = 0.0) -> bool:
+    """True when a rest phase's voltage shows no decaying induced voltage (:func:`rest_level`; samples
+    equally spaced). ``u_scale`` is unused (kept for callers of the earlier halves test)."""
+    return rest_level(np.arange(u.size, dtype=float), u).state != "settling"
+
+
+def rest_level(t: np.ndarray, u: np.ndarray) -> RestLevel:
+    """The voltage offset a zero-current rest phase measures, from three models of its voltage ``u`` [V].
+
+    A rest phase right after an excitation may still carry an induced voltage that decays (eddy currents,
+    a hysteresis creeping to remanence): its mean is not the offset. Models: a constant; a straight line
+    (an offset that drifts); ``a + c exp(-(t - t[0]) / tau)`` (an induced voltage decaying to the offset
+    ``a``; tau on the grid :data:`SETTLING_TAU_SAMPLES` in samples). Each richer model is taken when it
+    lowers the sum of squares by more than :data:`SETTLING_F` residual variances (the decay against the
+    line: "settling"; the line against the constant: "trending"; else "flat"). Flat or trending: the level is
+    the 10 %-trimmed mean, its standard error the residual std / sqrt(n). Settling: the asymptote at the best
+    tau, its standard error the fit's at that tau combined with the spread of the asymptote over the time
+    constants within one chi^2 unit of the best (profile).
     """
     from scipy.stats import trim_mean  # heavy: see the module docstring
 
-    anchors = []
-    se = 0.0
+    n = u.size
+    mean = float(trim_mean(u, 0.1)) if n else 0.0
+    if n < 12:
+        return RestLevel(mean, float(np.std(u)) / math.sqrt(max(n, 1)), "flat", 0.0, math.inf)
+    du = u - np.mean(u)
+    rss0 = float(du @ du)
+    tc = t - float(np.mean(t))
+    stt = max(float(tc @ tc), 1e-300)
+    slope = float(tc @ du) / stt
+    rss_lin = max(rss0 - slope * slope * stt, 0.0)
+    fits = []  # (rss, asymptote, its unscaled variance at this tau)
+    step = float(np.median(np.diff(t))) or 1.0
+    for tau in SETTLING_TAU_SAMPLES * step:
+        X = np.column_stack([np.ones(n), np.exp(-(t - t[0]) / tau)])
+        coef, *_ = np.linalg.lstsq(X, u, rcond=None)
+        fits.append((float(np.sum((X @ coef - u) ** 2)), float(coef[0]), float(np.linalg.pinv(X.T @ X)[0, 0])))
+    best = min(fits, key=lambda f: f[0])
+    s2_exp, s2_lin = best[0] / (n - 3), rss_lin / (n - 2)
+    slope_se = math.sqrt(s2_lin / stt)
+    if rss_lin - best[0] > SETTLING_F * s2_exp:
+        spread = max(abs(f[1] - best[1]) for f in fits if f[0] <= best[0] + s2_exp)
+        return RestLevel(best[1], math.hypot(math.sqrt(max(best[2] * s2_exp, 0.0)), spread), "settling",
+                         slope, slope_se)
+    if rss0 - rss_lin > SETTLING_F * s2_lin:
+        return RestLevel(mean, math.sqrt(s2_lin / n), "trending", slope, slope_se)
+    return RestLevel(mean, math.sqrt(rss0 / (n - 1) / n), "flat", slope, slope_se)
+
+
+def offset_model(t, u, head, tail):
+    """Voltage offset (a, b, t0, n, se, anchors): U_off(t) = a + b (t - t0) [V], from the ``n`` (0-2) rest
+    phases used; ``se`` [V] the larger standard error of the phases' levels; ``anchors`` the
+    ``(time [s], level [V], standard error [V])`` where the offset is pinned (their errors independent).
+
+    U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
+    Each phase's level comes from :func:`rest_level`. A flat or trending phase measures the offset, a
+    settling one extrapolates it: where one phase measures, a settling one is not used. With two phases a
+    drift is taken only when their levels differ by more than :data:`DRIFT_SIGMAS` combined standard errors,
+    and a trending phase whose own slope disagrees with that drift (by as many sigmas) is an induced
+    voltage, not a drift: it is treated as settling. Without a drift the offset is the inverse-variance mean
+    of the phases, constant.
+    """
+    found = []
     for sl in (head, tail):
-        if sl is not None and sl.stop - sl.start > 0 and stationary(u[sl], float(np.max(np.abs(u)))):
-            anchors.append((float(np.median(t[sl])), float(trim_mean(u[sl], 0.1))))
-            se = max(se, float(np.std(u[sl])) / math.sqrt(sl.stop - sl.start))
+        if sl is not None and sl.stop - sl.start > 0:
+            rl = rest_level(t[sl], u[sl])
+            if math.isfinite(rl.level_V):
+                found.append((float(np.median(t[sl])), rl.level_V, max(rl.se_V, 1e-15), rl))
+    measuring = [f for f in found if f[3].state != "settling"]
+    if len(measuring) == 2:
+        (t0, a0, s0, r0), (t1, a1, s1, r1) = measuring
+        b, b_se = (a1 - a0) / (t1 - t0), math.hypot(s0, s1) / abs(t1 - t0)
+        agree = [f for f in measuring if f[3].state != "trending"
+                 or abs(f[3].slope_V_per_s - b) <= DRIFT_SIGMAS * math.hypot(f[3].slope_se_V_per_s, b_se)]
+        measuring = agree or measuring[:1]
+    anchors = [f[:3] for f in (measuring or found)]
     if not anchors:
-        return 0.0, 0.0, float(t[0]), 0, math.inf
+        return 0.0, 0.0, float(t[0]), 0, math.inf, ()
     if len(anchors) == 1:
-        return anchors[0][1], 0.0, anchors[0][0], 1, se
-    (t0, a0), (t1, a1) = anchors
-    return a0, (a1 - a0) / (t1 - t0), t0, 2, se
+        return anchors[0][1], 0.0, anchors[0][0], 1, anchors[0][2], tuple(anchors)
+    (t0, a0, s0), (t1, a1, s1) = anchors
+    if abs(a1 - a0) > DRIFT_SIGMAS * math.hypot(s0, s1):
+        return a0, (a1 - a0) / (t1 - t0), t0, 2, max(s0, s1), tuple(anchors)
+    w0, w1 = 1.0 / s0 ** 2, 1.0 / s1 ** 2
+    level = (w0 * a0 + w1 * a1) / (w0 + w1)
+    # the reported se stays the larger of the two (as with a drift): downstream it decides whether the eq.-4
+    # flux's trend is known (the loop compares flux residuals orthogonal to a trend where it is not)
+    return level, 0.0, t0, 2, max(s0, s1), ((t0, level, 1.0 / math.sqrt(w0 + w1)),)
 
 
 def plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
@@ -131,6 +204,10 @@ class Conditioned:
         current-sensor offset removed [A].
     n_anchors : int
         Rest phases that gave the offset (0-2).
+    offset_anchors : tuple of (float, float, float)
+        ``(time [s], offset [V], standard error [V])`` where the offset model is pinned: one per rest phase
+        when it drifts, else one (the mean of the phases). Their errors are independent; the offset's error
+        is the linear interpolation of theirs (the resistance fit carries them as nuisance parameters).
     head, tail : slice or None
         The zero-current rest phases at the start and end.
     dt, sigma_i, i_max, thr : float
@@ -158,6 +235,7 @@ class Conditioned:
     thr: float
     k_smooth: int
     notes: list[str] = field(default_factory=list)
+    offset_anchors: tuple = ()
 
     def plateau_mask(self) -> np.ndarray:
         """Settled samples of the current plateaus (|i| > 10 % of the peak, held >= 50 ms)."""
@@ -176,10 +254,12 @@ def condition(rec: Recording) -> Conditioned:
 
     Notes
     -----
-    Offset: the 10 %-trimmed mean of U over the zero-current rest phases at the start and at the
-    end (each at least 10 ms; of the end phase only its second half); with both, linear drift
-    between them. Rest: ``|i| < max(5 sigma_i, 0.2 % of the peak)``. A mean current in the rest
-    phases is removed as a current-sensor offset only when it exceeds five standard errors.
+    Offset: the level U settles to in the zero-current rest phases at the start and at the end (each
+    at least 10 ms; of the end phase only its second half; :func:`rest_level`: the 10 %-trimmed mean, or
+    the asymptote of a decaying exponential where an induced voltage still decays); with both, linear
+    drift between them only when they differ significantly (:func:`offset_model`). Rest:
+    ``|i| < max(5 sigma_i, 0.2 % of the peak)``. A mean current in the rest phases is removed as a
+    current-sensor offset only when it exceeds five standard errors.
     """
     if rec.voltage_V is None:
         raise RecordingError(rec.label(), ["no voltage_V column: the flux linkage needs the coil voltage"])
@@ -200,10 +280,7 @@ def condition(rec: Recording) -> Conditioned:
     head, tail = rest_runs(i_s, thr, min_rest)
     if head is None and tail is None:
         notes.append("no zero-current rest phase at the start or end: no voltage offset removed")
-    a, b, t0, n_anchors, offset_se = offset_model(t, u, head, tail)
-    if n_anchors == 0 and (head is not None or tail is not None):
-        notes.append("the zero-current rest phases still carry a settling induced voltage: no voltage offset "
-                     "removed")
+    a, b, t0, n_anchors, offset_se, anchors = offset_model(t, u, head, tail)
     offset = a + b * (t - t0)
     uc = u - offset
     i_off = 0.0
@@ -216,6 +293,7 @@ def condition(rec: Recording) -> Conditioned:
             notes.append(f"current-sensor offset of {i_off * 1e3:.3f} mA in the rest phases removed")
     return Conditioned(t=t, uc=uc, ic=i - i_off, i_s=i_s, offset=offset, drift_V_per_s=float(b),
                        offset_se_V=offset_se, current_offset_A=i_off, n_anchors=n_anchors, head=head, tail=tail,
+                       offset_anchors=anchors,
                        dt=dt, sigma_i=sigma_i, i_max=i_max, thr=thr, k_smooth=k_smooth, notes=notes)
 
 
