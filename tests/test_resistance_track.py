@@ -164,3 +164,18 @@ def test_default_flux_is_unchanged_and_commutation_curve_takes_tracks(tables):
     assert cc.resistance is not None and cc.results[0].track is cc.resistance.track_for(rec)
     assert cc.results[0].resistance_method == "track"
     assert commutation_curve([rec]).resistance is None
+
+
+def test_a_noise_free_recording_gets_a_track_not_a_linear_algebra_error(tables):
+    """Sensors whose noise is below the ADC's step (or a tool that writes clean signals): the robust noise
+    estimate (second differences) is 0, so every equation's sigma would be 0 and the fit divides by it. The
+    floor (a 24-bit ADC's step of the largest voltage) keeps it defined; the heating rate comes out near the
+    truth's alpha / C_th (adiabatic: within 20 %)."""
+    t, v = _knots("trapezoid", 2.0, 10.0, 3, 1.0, hold=1.0)  # mostly holds and rests: flat voltage
+    exc = Excitation("flux_trapezoid", "flux", "current", 1000.0, t, v, (0.0,), (1.5e-3,), notes="quiet")
+    truth = TruthModel(tables, Effects(heating=HOT)).simulate(exc, T_start_C=22.0)
+    quiet = DataAcquisition(voltage_noise_V=0.0, current_noise_A=0.0, force_noise_N=0.0, position_noise_m=0.0)
+    rec = measure(truth, exc, quiet, np.random.default_rng(0))
+    camp = campaign_resistance([rec])
+    assert math.isfinite(camp.kappa_per_J) and camp.kappa_sigma_per_J > 0
+    assert camp.kappa_per_J == pytest.approx(0.00393 / HOT.C_th_J_per_K, rel=0.2)

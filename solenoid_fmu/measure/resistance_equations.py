@@ -16,7 +16,8 @@ from .branches import branch_on_grid, split_branches
 from .conditioning import Conditioned, condition, noise_std
 from .format import Recording
 
-__all__ = ["TAU_MODEL_S", "PLATEAU_PARTS", "MIN_BRANCH", "PEAK_TOL", "Equations", "cumtrapz", "equations", "prepare",
+__all__ = ["TAU_MODEL_S", "NOISE_FLOOR_REL", "adc_noise",
+           "PLATEAU_PARTS", "MIN_BRANCH", "PEAK_TOL", "Equations", "cumtrapz", "equations", "prepare",
            "start_R", "solve_wls", "data_block", "fit_one", "scale_of", "model_error"]
 
 #: Shortest thermal time constant the adiabatic model is meant for [s] (sets its model error).
@@ -24,6 +25,8 @@ TAU_MODEL_S = 60.0
 PLATEAU_PARTS = 4  # equations per plateau
 MIN_BRANCH = 50  # samples a branch needs for closure (coarser ones interpolate the loop too roughly)
 PEAK_TOL = 0.003  # peaks within 0.3 % (or 4 sigma of the current noise) count as the same height
+#: Floor of the per-sample voltage noise, relative to the recording's largest |U|: a 24-bit ADC's step.
+NOISE_FLOOR_REL = 2.0 ** -24
 
 
 @dataclass
@@ -45,6 +48,16 @@ class Equations:
     R_ref: float           # c = kappa R_ref
 
 
+def adc_noise(u: np.ndarray) -> float:
+    """Floor of a channel's per-sample noise [V]: its quantization (the smallest step between samples over
+    sqrt 12: a noise below the ADC's step reads as 0 in second differences), at least :data:`NOISE_FLOOR_REL`
+    of its largest magnitude (the finest DAQ's resolution; unquantized clean data)."""
+    steps = np.abs(np.diff(u))
+    steps = steps[steps > 0]
+    q = float(np.min(steps)) / math.sqrt(12.0) if steps.size else 0.0
+    return max(q, NOISE_FLOOR_REL * float(np.max(np.abs(u))), 1e-300)
+
+
 def cumtrapz(y: np.ndarray, t: np.ndarray) -> np.ndarray:
     out = np.zeros_like(y, dtype=float)
     out[1:] = np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t))
@@ -60,6 +73,8 @@ def equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float
     B = np.column_stack([cumtrapz(ic, t), cumtrapz(E * ic, t)])
     R_nom = float(np.median(R_t))
     sig_u = math.hypot(noise_std(rec.voltage_V), R_nom * cond.sigma_i)  # per sample [V]
+    # noise below the ADC's step reads as 0 (flat second differences): floor it at the finest DAQ's resolution
+    sig_u = max(sig_u, adc_noise(rec.voltage_V))
     ys, gs, ss, kinds = [], [], [], []
 
     def add(w: np.ndarray, idx: np.ndarray, sigma: float, kind: str):
@@ -148,12 +163,17 @@ def start_R(rec: Recording, cond: Conditioned, R_prior: float | None) -> float:
 
 
 def solve_wls(blocks: list[tuple[np.ndarray, np.ndarray]], n_par: int) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted least squares of stacked (whitened design, whitened rhs) blocks: estimate and (JtJ)^-1."""
+    """Weighted least squares of stacked (whitened design, whitened rhs) blocks: estimate and (JtJ)^-1.
+
+    By the SVD of the whitened design itself, not of JtJ: near-noise-free data weigh their equations ~1e9
+    against the priors, and JtJ's squared condition would drop the priors' directions as numerically zero."""
     J = np.vstack([b[0] for b in blocks]).reshape(-1, n_par)
     r = np.concatenate([b[1] for b in blocks])
-    JtJ = J.T @ J
-    cov = np.linalg.pinv(JtJ)
-    return cov @ (J.T @ r), cov
+    U, sv, Vt = np.linalg.svd(J, full_matrices=False)
+    keep = sv > sv[0] * max(J.shape) * np.finfo(float).eps if sv.size else sv > 0
+    inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)
+    theta = Vt.T @ (inv * (U.T @ r))
+    return theta, (Vt.T * inv ** 2) @ Vt
 
 
 def data_block(eq: Equations, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
