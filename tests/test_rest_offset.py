@@ -1,9 +1,10 @@
-"""The voltage offset of eq. 4 from the zero-current rests, when an induced voltage still decays in them.
+"""The voltage offset of eq. 4 from the zero-current rests, when a voltage still decays in them.
 
-After the current returns to zero, eddy currents relax the flux and induce a voltage that decays over tens
-of milliseconds; a short end rest sees it. Taken for the offset it is a drift of several mV/s, which the
-eq.-4 integral turns into a flux ramp, and the resistance track into a heating rate of many sigmas on a
-coil that does not heat (the loop then adds heating to a clean campaign).
+After the current returns to "zero" it still has a tail under the rest threshold (a current controller's
+undershoot of ~1 mA, decaying over ~15 ms), and R i plus the flux it moves (eddy currents, hysteresis creep
+too) put a decaying voltage of some mV into the rest; a short end rest sees it. Taken for the offset it is
+a drift of several mV/s, which the eq.-4 integral turns into a flux ramp, and the resistance track into a
+heating rate of many sigmas on a coil that does not heat (the loop then adds heating to a clean campaign).
 """
 
 import math
@@ -23,7 +24,7 @@ def psi_Wb(i_A):
 
 def recording(peaks_A, *, rest_s=0.06, decay_V=0.1, tau_s=0.015, offset_V=5e-3, seed=1, noise_V=1e-3):
     """Triangles at 1 A/s with rests of ``rest_s`` at both ends (5 kHz); after the last one the voltage
-    carries ``decay_V exp(-(t - t_end) / tau_s)``, an induced voltage relaxing at zero current."""
+    carries ``decay_V exp(-(t - t_end) / tau_s)``, a voltage decaying in the rest."""
     knots_t, knots_i, t = [0.0, rest_s], [0.0, 0.0], rest_s
     for k, peak in enumerate(peaks_A):
         knots_t += [t + peak, t + 2 * peak, t + 2 * peak + (0.2 if k < len(peaks_A) - 1 else rest_s)]

@@ -89,8 +89,9 @@ def stationary(u: np.ndarray, u_scale: float = 0.0) -> bool:
 def rest_level(t: np.ndarray, u: np.ndarray) -> RestLevel:
     """The voltage offset a zero-current rest phase measures, from three models of its voltage ``u`` [V].
 
-    A rest phase right after an excitation may still carry an induced voltage that decays (eddy currents,
-    a hysteresis creeping to remanence): its mean is not the offset. Models: a constant; a straight line
+    A rest phase right after an excitation may still carry a voltage that decays (the current's tail under the
+    rest threshold, R i and the flux it moves; eddy currents; a hysteresis creeping to remanence): its mean is
+    not the offset. Models: a constant; a straight line
     (an offset that drifts); ``a + c exp(-(t - t[0]) / tau)`` (an induced voltage decaying to the offset
     ``a``; tau on the grid :data:`SETTLING_TAU_SAMPLES` in samples). Each richer model is taken when it
     lowers the sum of squares by more than :data:`SETTLING_F` residual variances (the decay against the
