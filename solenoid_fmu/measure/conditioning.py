@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import RecordingError
 from .format import Recording
 
-__all__ = ["Conditioned", "condition", "noise_std", "smooth", "rest_runs", "stationary", "rest_level", "RestLevel",
+__all__ = ["Conditioned", "condition", "noise_std", "smooth", "rest_runs", "rest_level", "RestLevel",
            "offset_model", "plateaus", "hold_segments", "SETTLING_F", "DRIFT_SIGMAS"]
 
 
@@ -78,12 +78,6 @@ class RestLevel(NamedTuple):
     state: str           #: "flat", "trending" (a straight line beats a constant) or "settling" (a decay beats a line)
     slope_V_per_s: float  #: the straight line's slope
     slope_se_V_per_s: float
-
-
-def stationary(u: np.ndarray, u_scale: float = 0.0) -> bool:
-    """True when a rest phase's voltage shows no decaying induced voltage (:func:`rest_level`; samples
-    equally spaced). ``u_scale`` is unused (kept for callers of the earlier halves test)."""
-    return rest_level(np.arange(u.size, dtype=float), u).state != "settling"
 
 
 def rest_level(t: np.ndarray, u: np.ndarray) -> RestLevel:
