@@ -135,26 +135,31 @@ def offset_model(t, u, head, tail):
     drift is taken only when their levels differ by more than :data:`DRIFT_SIGMAS` combined standard errors,
     and a trending phase whose own slope disagrees with that drift (by as many sigmas) is an induced
     voltage, not a drift: it is treated as settling. Without a drift the offset is the inverse-variance mean
-    of the phases, constant.
+    of the phases, constant. A lone trending phase (nothing to tell a drift from a decay) gives its mean, uncertain
+    by at least half its own change (|slope| x its duration / 2).
     """
     found = []
     for sl in (head, tail):
         if sl is not None and sl.stop - sl.start > 0:
             rl = rest_level(t[sl], u[sl])
             if math.isfinite(rl.level_V):
-                found.append((float(np.median(t[sl])), rl.level_V, max(rl.se_V, 1e-15), rl))
+                found.append((float(np.median(t[sl])), rl.level_V, max(rl.se_V, 1e-15), rl, float(np.ptp(t[sl]))))
     measuring = [f for f in found if f[3].state != "settling"]
     if len(measuring) == 2:
-        (t0, a0, s0, r0), (t1, a1, s1, r1) = measuring
+        (t0, a0, s0, *_), (t1, a1, s1, *_) = measuring
         b, b_se = (a1 - a0) / (t1 - t0), math.hypot(s0, s1) / abs(t1 - t0)
         agree = [f for f in measuring if f[3].state != "trending"
                  or abs(f[3].slope_V_per_s - b) <= DRIFT_SIGMAS * math.hypot(f[3].slope_se_V_per_s, b_se)]
         measuring = agree or measuring[:1]
-    anchors = [f[:3] for f in (measuring or found)]
+    used = measuring or found
+    anchors = [f[:3] for f in used]
     if not anchors:
         return 0.0, 0.0, float(t[0]), 0, math.inf, ()
     if len(anchors) == 1:
-        return anchors[0][1], 0.0, anchors[0][0], 1, anchors[0][2], tuple(anchors)
+        tm, level, se, rl, width = used[0]
+        if rl.state == "trending":  # no other rest to tell a drift from a decay: uncertain by its own change
+            se = math.hypot(se, 0.5 * abs(rl.slope_V_per_s) * width)
+        return level, 0.0, tm, 1, se, ((tm, level, se),)
     (t0, a0, s0), (t1, a1, s1) = anchors
     if abs(a1 - a0) > DRIFT_SIGMAS * math.hypot(s0, s1):
         return a0, (a1 - a0) / (t1 - t0), t0, 2, max(s0, s1), tuple(anchors)
