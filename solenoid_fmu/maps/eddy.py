@@ -133,17 +133,10 @@ def _fit_origin(e: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     return g, r2
 
 
-def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float]:
-    """Induced voltage e = dPsi/dt [V] and eddy current i - i_f(Psi, x) [A] of one recording,
-    and its current rate [A/s] (median |di/dt| where the current moves). :func:`eddy_samples_with` also gives
-    the secant inductance [H] and the median sample interval [s]."""
-    e, y, rate, _L, _dt = eddy_samples_with(recording, maps)
-    return e, y, rate
-
-
-def eddy_samples_with(recording, maps):
-    """:func:`eddy_samples` and the recording's secant inductance ``ptp(Psi) / ptp(i)`` [H] and median sample
-    interval [s]."""
+def eddy_samples(recording, maps) -> tuple[np.ndarray, np.ndarray, float, float, float]:
+    """Induced voltage e = dPsi/dt [V] and eddy current i - i_f(Psi, x) [A] of one recording, its current
+    rate [A/s] (median |di/dt| where the current moves), its secant inductance ``ptp(Psi) / ptp(i)`` [H] and
+    its median sample interval [s]."""
     rec = recording
     if rec.voltage_V is None:
         raise SolenoidError(f"{rec.path}: an eddy fit needs a voltage_V column (paper eq. 4)")
@@ -185,7 +178,7 @@ def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
     per, E, Y, left_out = [], [], [], []
     for rec in recs:
         try:
-            e, y, rate, L, dt = eddy_samples_with(rec, maps)
+            e, y, rate, L, dt = eddy_samples(rec, maps)
         except SolenoidError as exc:
             if "absolute eq.-4 flux" not in str(exc):
                 raise

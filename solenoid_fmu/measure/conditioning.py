@@ -125,9 +125,8 @@ def rest_level(t: np.ndarray, u: np.ndarray) -> RestLevel:
 
 
 def offset_model(t, u, head, tail):
-    """Voltage offset (a, b, t0, n, se, anchors): U_off(t) = a + b (t - t0) [V], from the ``n`` (0-2) rest
-    phases used; ``se`` [V] the larger standard error of the phases' levels; ``anchors`` the
-    ``(time [s], level [V], standard error [V])`` where the offset is pinned (their errors independent).
+    """Voltage offset (a, b, t0, n, se): U_off(t) = a + b (t - t0) [V], from the ``n`` (0-2) rest phases used;
+    ``se`` [V] the larger standard error of the phases' levels.
 
     U alone (not U - R i): with i = 0 in the rest phases, R i only adds the current noise times R.
     Each phase's level comes from :func:`rest_level`. A flat or trending phase measures the offset, a
@@ -152,22 +151,20 @@ def offset_model(t, u, head, tail):
                  or abs(f[3].slope_V_per_s - b) <= DRIFT_SIGMAS * math.hypot(f[3].slope_se_V_per_s, b_se)]
         measuring = agree or measuring[:1]
     used = measuring or found
-    anchors = [f[:3] for f in used]
-    if not anchors:
-        return 0.0, 0.0, float(t[0]), 0, math.inf, ()
-    if len(anchors) == 1:
+    if not used:
+        return 0.0, 0.0, float(t[0]), 0, math.inf
+    if len(used) == 1:
         tm, level, se, rl, width = used[0]
         if rl.state == "trending":  # no other rest to tell a drift from a decay: uncertain by its own change
             se = math.hypot(se, 0.5 * abs(rl.slope_V_per_s) * width)
-        return level, 0.0, tm, 1, se, ((tm, level, se),)
-    (t0, a0, s0), (t1, a1, s1) = anchors
+        return level, 0.0, tm, 1, se
+    (t0, a0, s0, *_), (t1, a1, s1, *_) = used
     if abs(a1 - a0) > DRIFT_SIGMAS * math.hypot(s0, s1):
-        return a0, (a1 - a0) / (t1 - t0), t0, 2, max(s0, s1), tuple(anchors)
+        return a0, (a1 - a0) / (t1 - t0), t0, 2, max(s0, s1)
     w0, w1 = 1.0 / s0 ** 2, 1.0 / s1 ** 2
-    level = (w0 * a0 + w1 * a1) / (w0 + w1)
     # the reported se stays the larger of the two (as with a drift): downstream it decides whether the eq.-4
     # flux's trend is known (the loop compares flux residuals orthogonal to a trend where it is not)
-    return level, 0.0, t0, 2, max(s0, s1), ((t0, level, 1.0 / math.sqrt(w0 + w1)),)
+    return (w0 * a0 + w1 * a1) / (w0 + w1), 0.0, t0, 2, max(s0, s1)
 
 
 def plateaus(i_s: np.ndarray, sigma_s: float, i_max: float, min_len: int) -> np.ndarray:
@@ -204,10 +201,6 @@ class Conditioned:
         current-sensor offset removed [A].
     n_anchors : int
         Rest phases that gave the offset (0-2).
-    offset_anchors : tuple of (float, float, float)
-        ``(time [s], offset [V], standard error [V])`` where the offset model is pinned: one per rest phase
-        when it drifts, else one (the mean of the phases). Their errors are independent; the offset's error
-        is the linear interpolation of theirs (the resistance fit carries them as nuisance parameters).
     head, tail : slice or None
         The zero-current rest phases at the start and end.
     dt, sigma_i, i_max, thr : float
@@ -235,7 +228,6 @@ class Conditioned:
     thr: float
     k_smooth: int
     notes: list[str] = field(default_factory=list)
-    offset_anchors: tuple = ()
 
     def plateau_mask(self) -> np.ndarray:
         """Settled samples of the current plateaus (|i| > 10 % of the peak, held >= 50 ms)."""
@@ -280,7 +272,7 @@ def condition(rec: Recording) -> Conditioned:
     head, tail = rest_runs(i_s, thr, min_rest)
     if head is None and tail is None:
         notes.append("no zero-current rest phase at the start or end: no voltage offset removed")
-    a, b, t0, n_anchors, offset_se, anchors = offset_model(t, u, head, tail)
+    a, b, t0, n_anchors, offset_se = offset_model(t, u, head, tail)
     offset = a + b * (t - t0)
     uc = u - offset
     i_off = 0.0
@@ -293,7 +285,6 @@ def condition(rec: Recording) -> Conditioned:
             notes.append(f"current-sensor offset of {i_off * 1e3:.3f} mA in the rest phases removed")
     return Conditioned(t=t, uc=uc, ic=i - i_off, i_s=i_s, offset=offset, drift_V_per_s=float(b),
                        offset_se_V=offset_se, current_offset_A=i_off, n_anchors=n_anchors, head=head, tail=tail,
-                       offset_anchors=anchors,
                        dt=dt, sigma_i=sigma_i, i_max=i_max, thr=thr, k_smooth=k_smooth, notes=notes)
 
 
