@@ -109,7 +109,7 @@ class LMResult:
 
 
 def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, project=None,
-                 max_step: float | None = None, min_decrease: float = 0.0) -> LMResult:
+                 max_step: float | None = None, min_decrease: float = 0.0, solve_step=None) -> LMResult:
     """Levenberg-Marquardt with the step projected onto the bounds (a box), or by ``project(x)``
     when given: one residual evaluation (FEM sweep) per trial step and one Jacobian (adjoint solves)
     per accepted step. Status as scipy's least_squares: 0 budget, 2 cost converged (relative
@@ -122,7 +122,10 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
     after the k-th failure in a row). ``max_step`` caps the largest parameter change of a step (in
     the parameters' units): a fit far from its start does not spend its first evaluations on steps
     the linearization cannot take: it is a trust radius, halved (below the failed step) after a
-    failure, doubled (up to 4 ``max_step``) after a step the linear model predicted well (rho > 0.75)."""
+    failure, doubled (up to 4 ``max_step``) after a step the linear model predicted well (rho > 0.75).
+    ``solve_step(x, J, r, damping, radius)``, when given, returns the damped step itself (a constrained
+    subproblem, e.g. :func:`~.cone_step.cone_step`, within the trust radius, None without one) in place of the
+    unconstrained ``-(J^T J + diag(damping))^-1 J^T r``."""
     if project is None:
         def project(v):
             return np.clip(v, lo, hi)
@@ -137,7 +140,10 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
         A = J.T @ J
         g = J.T @ r
         dA = np.diag(A).copy() + 1e-12
-        step = -np.linalg.solve(A + mu * np.diag(dA), g)
+        if solve_step is None:
+            step = -np.linalg.solve(A + mu * np.diag(dA), g)
+        else:
+            step = solve_step(x, J, r, mu * dA, radius)
         big = float(np.max(np.abs(step))) if step.size else 0.0
         if radius is not None and big > radius:
             step *= radius / big

@@ -32,8 +32,9 @@ import time
 import numpy as np
 
 from ..errors import SolenoidError
+from .cone_step import cone_step
 from .fit import projected_lm
-from .parametrization import fit_to_curve, project_unimodal, scaled_curve, with_peak_of
+from .parametrization import LOG_CHI_RANGE, fit_to_curve, project_unimodal, scaled_curve, with_peak_of
 from .point_model import PointModel
 from .point_pool import default_workers
 
@@ -337,6 +338,15 @@ def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray,
         return node_values(model, project_unimodal(model, node_theta(v), floor))
 
     pm.curve_fn = lambda v: model.curve(node_theta(v))
+    lo_model, hi_model = model.bounds()
+    lower = np.concatenate([np.maximum(floor, LOG_CHI_RANGE[0]), [lo_model[m]]])
+    lower[0] = max(lower[0], lo_model[0])
+    upper = np.concatenate([np.full(m, LOG_CHI_RANGE[1]), [hi_model[m]]])
+    upper[0] = min(upper[0], hi_model[0])
+
+    def step_in_cone(v, J, r, damping, radius):
+        return cone_step(v, J, r, damping, lower, upper, radius)
+
     D = node_prior(model.H_nodes)
     prior0 = D @ v1
     v_start = v1
@@ -350,7 +360,7 @@ def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray,
             return np.vstack([jac(v), w * D])
 
         st2 = projected_lm(residual, jacobian, v_start, None, None, max_nfev, project=project,
-                          max_step=STAGE2_MAX_STEP, min_decrease=STAGE2_MIN_DECREASE)
+                          max_step=STAGE2_MAX_STEP, min_decrease=STAGE2_MIN_DECREASE, solve_step=step_in_cone)
         r2 = res(st2.x)
         J2 = jac(st2.x)
         theta2 = node_theta(st2.x)
