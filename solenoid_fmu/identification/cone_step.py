@@ -26,8 +26,6 @@ from __future__ import annotations
 import numpy as np
 import quadprog
 
-#: Largest rise or fall of ln chi between neighbouring nodes (the node model's increment bounds).
-MAX_INCREMENT = 10.0
 #: Smallest damping relative to the largest diagonal entry of J^T J: keeps the program strictly convex
 #: (quadprog factors its matrix) where a node is not seen by any point.
 MIN_RELATIVE_DAMPING = 1e-10
@@ -42,11 +40,13 @@ def cone_constraints(m: int, k: int) -> np.ndarray:
     return rows
 
 
-def cone_step(v, J, r, damping, lower, upper, radius: float | None = None, peaks=None) -> np.ndarray:
+def cone_step(v, J, r, damping, lower, upper, radius: float | None = None, max_increment: float = np.inf
+              ) -> np.ndarray:
     """The step d minimizing ``|r + J d|^2 + sum(damping * d^2)`` with ``v + d`` unimodal, between ``lower`` and
-    ``upper``, and ``|d| <= radius`` at every entry (see the module docstring); the best over the peak nodes
-    ``peaks`` (default: all). Where no peak admits a feasible step (v far outside the cone and the radius
-    small), the zero step.
+    ``upper``, each rise or fall between neighbouring nodes at most ``max_increment``, and ``|d| <= radius`` at
+    every entry (see the module docstring); the best over every peak node. Where no peak admits a feasible step
+    (v far outside the cone and the radius small), the zero step. The stage-2 bounds:
+    :func:`~.parametrization.node_value_bounds`.
 
     Parameters
     ----------
@@ -61,6 +61,8 @@ def cone_step(v, J, r, damping, lower, upper, radius: float | None = None, peaks
         Bounds of v + d (-inf / inf where there is none).
     radius : float, optional
         Trust radius: the largest change of any entry.
+    max_increment : float, optional
+        Largest rise or fall of ln chi between neighbouring nodes (the node model's increment bounds).
     """
     v = np.asarray(v, dtype=float)
     m = len(v) - 1
@@ -82,11 +84,15 @@ def cone_step(v, J, r, damping, lower, upper, radius: float | None = None, peaks
             box_rows.append(-eye[j])
             box_b.append(-hi[j])
     best, best_cost = np.zeros(m + 1), float(r @ r)
-    for k in range(m) if peaks is None else peaks:
-        cone = cone_constraints(m, int(k))  # cone @ (v + d) >= 0; each increment at most MAX_INCREMENT
-        C = np.vstack([cone, -cone] + ([np.array(box_rows)] if box_rows else []))
-        rise = cone @ v  # an increment already beyond MAX_INCREMENT may stay (as a start outside a bound)
-        b = np.concatenate([-rise, rise - np.maximum(rise, MAX_INCREMENT), np.array(box_b)])
+    for k in range(m):
+        cone = cone_constraints(m, k)  # cone @ (v + d) >= 0; each increment at most max_increment
+        rise = cone @ v
+        rows, bs = [cone], [-rise]
+        if np.isfinite(max_increment):  # an increment already beyond it may stay (as a start outside a bound)
+            rows.append(-cone)
+            bs.append(rise - np.maximum(rise, max_increment))
+        C = np.vstack(rows + ([np.array(box_rows)] if box_rows else []))
+        b = np.concatenate(bs + [np.array(box_b)])
         try:
             d = quadprog.solve_qp(G, a, C.T, b)[0]
         except ValueError:  # infeasible with this peak (inconsistent constraints)

@@ -138,10 +138,9 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
     nfev = 1
     while nfev < max_nfev:
         A = J.T @ J
-        g = J.T @ r
         dA = np.diag(A).copy() + 1e-12
         if solve_step is None:
-            step = -np.linalg.solve(A + mu * np.diag(dA), g)
+            step = -np.linalg.solve(A + mu * np.diag(dA), J.T @ r)
         else:
             step = solve_step(x, J, r, mu * dA, radius)
         big = float(np.max(np.abs(step))) if step.size else 0.0

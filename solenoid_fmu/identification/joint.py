@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import SolenoidError
 from .cone_step import cone_step
 from .fit import projected_lm
-from .parametrization import LOG_CHI_RANGE, fit_to_curve, project_unimodal, scaled_curve, with_peak_of
+from .parametrization import fit_to_curve, node_value_bounds, project_unimodal, scaled_curve, with_peak_of
 from .point_model import PointModel
 from .point_pool import default_workers
 
@@ -338,14 +338,10 @@ def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray,
         return node_values(model, project_unimodal(model, node_theta(v), floor))
 
     pm.curve_fn = lambda v: model.curve(node_theta(v))
-    lo_model, hi_model = model.bounds()
-    lower = np.concatenate([np.maximum(floor, LOG_CHI_RANGE[0]), [lo_model[m]]])
-    lower[0] = max(lower[0], lo_model[0])
-    upper = np.concatenate([np.full(m, LOG_CHI_RANGE[1]), [hi_model[m]]])
-    upper[0] = min(upper[0], hi_model[0])
+    lower, upper, max_increment = node_value_bounds(model, floor)
 
     def step_in_cone(v, J, r, damping, radius):
-        return cone_step(v, J, r, damping, lower, upper, radius)
+        return cone_step(v, J, r, damping, lower, upper, radius, max_increment)
 
     D = node_prior(model.H_nodes)
     prior0 = D @ v1

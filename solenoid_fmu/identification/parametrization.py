@@ -27,6 +27,7 @@ __all__ = [
     "MAX_TAIL_SLOPE",
     "SusceptibilityModel",
     "fit_to_curve",
+    "node_value_bounds",
     "scaled_curve",
     "constraint_values",
     "constraint_residuals",
@@ -242,6 +243,19 @@ def project_unimodal(model: SusceptibilityModel, theta, floor=None) -> np.ndarra
     d = np.clip(np.diff(fit), lo[1:m].min(), hi[1:m].max())
     out = np.concatenate([[fit[0]], d, [np.clip(theta[m], lo[m], hi[m])]])
     return out
+
+
+def node_value_bounds(model: SusceptibilityModel, floor) -> tuple[np.ndarray, np.ndarray, float]:
+    """The bounds :func:`project_unimodal` keeps, on node values v = (ln chi at the m nodes, tail slope): lower and
+    upper of v (chi within :data:`LOG_CHI_RANGE` and the model's range at the first node, ``floor`` below, the
+    tail slope's range) and the largest rise or fall of ln chi between neighbouring nodes. For a step solved
+    inside them (:func:`~.cone_step.cone_step`) rather than projected onto them afterwards."""
+    m = len(model.H_nodes)
+    lo, hi = model.bounds()
+    lower = np.concatenate([np.maximum(np.asarray(floor, dtype=float), LOG_CHI_RANGE[0]), [lo[m]]])
+    upper = np.concatenate([np.full(m, LOG_CHI_RANGE[1]), [hi[m]]])
+    lower[0], upper[0] = max(lower[0], lo[0]), min(upper[0], hi[0])
+    return lower, upper, float(max(hi[1:m].max(), -lo[1:m].min()))
 
 
 def with_peak_of(model: SusceptibilityModel, theta) -> SusceptibilityModel:
