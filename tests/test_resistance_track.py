@@ -179,3 +179,26 @@ def test_a_noise_free_recording_gets_a_track_not_a_linear_algebra_error(tables):
     camp = campaign_resistance([rec])
     assert math.isfinite(camp.kappa_per_J) and camp.kappa_sigma_per_J > 0
     assert camp.kappa_per_J == pytest.approx(0.00393 / HOT.C_th_J_per_K, rel=0.2)
+
+
+def test_a_coil_warm_from_the_campaign_cools_and_keeps_its_own_heating_rate(tables):
+    """One kappa holds for a coil heated from ambient; one that starts 30 K warm also cools, (T - T_amb) / R_th
+    (here 10 W against 16 W of Joule heat), and warms within the recording at less than half the rate. The joint
+    kappa (a compromise) leaves the loops of both open; their own tracks close them, and the campaign gives each
+    its own."""
+    cold, _, _ = _record(tables, "triangle", 6, rate=4.0, seed=11)
+    warm, truth, model = _record(tables, "triangle", 6, rate=4.0, seed=12, T_start_C=52.0)
+    camp = campaign_resistance([cold, warm])
+    tr = camp.track_for(warm)
+    print(f"warm: kappa {tr.kappa_per_J:.3g} ({tr.kappa_source}), campaign {camp.kappa_per_J:.3g} /J; closure "
+          f"{tr.closure_rms_Wb * 1e3:.3g} mWb (noise {tr.closure_noise_Wb * 1e3:.3g}); {tr.notes}")
+    assert tr.kappa_source == "recording" and any("also cools" in n for n in tr.notes)
+    assert tr.kappa_per_J < 0.7 * camp.track_for(cold).kappa_per_J  # true: 0.4 of the cold coil's rate
+    assert camp.problems == []
+    assert abs(tr.R0_ohm - model.R_ohm_at(truth.temperature_start_C)) < 3 * tr.R0_sigma_ohm
+    forced = resistance_track(warm, kappa_per_J=camp.kappa_per_J, kappa_sigma_per_J=1e-3 * camp.kappa_per_J)
+    e_own = _psi_error_at_peak(flux_linkage(warm, resistance=tr), truth)
+    e_forced = _psi_error_at_peak(flux_linkage(warm, resistance=forced), truth)
+    print(f"Psi at the peak: own track {100 * e_own:.3f} % (+-{100 * tr.psi_peak_sigma_Wb / tr.psi_peak_Wb:.2g} %), "
+          f"the campaign's kappa {100 * e_forced:.2f} %")
+    assert e_own < 3 * tr.psi_peak_sigma_Wb / tr.psi_peak_Wb and e_own < 0.2 * e_forced

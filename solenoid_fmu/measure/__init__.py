@@ -5,14 +5,8 @@ from .conditioning import hold_segments
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
 from .reader import read_recording, validate_recording
-from .resistance import (
-    HEADER_OFF_SIGMAS,
-    CampaignResistance,
-    ResistanceTrack,
-    campaign_resistance,
-    closure_problems,
-    resistance_track,
-)
+from .resistance import HEADER_OFF_SIGMAS, ResistanceTrack, closure_problems, resistance_track
+from .resistance_campaign import CampaignResistance, campaign_resistance
 from .writer import write_recording
 
 __all__ = [

@@ -23,7 +23,8 @@ from ..errors import RecordingError
 from .branches import FluxBranch, peak_curves, split_branches
 from .conditioning import condition
 from .format import Recording
-from .resistance import CampaignResistance, ResistanceTrack, campaign_resistance, resistance_track
+from .resistance import ResistanceTrack, resistance_track
+from .resistance_campaign import CampaignResistance, campaign_resistance
 
 __all__ = ["FluxResult", "flux_linkage", "CommutationCurve", "commutation_curve"]
 

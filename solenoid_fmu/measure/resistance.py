@@ -39,35 +39,30 @@ least that fraction (moving ``R0`` the way the data leave free).
 A track is ``pinned`` when the uncertainty it leaves in Psi at the highest peak is below
 :data:`PINNED_REL` (0.3 %) of Psi there. :func:`campaign_resistance` fits one ``kappa`` for all
 recordings of a campaign at a fixed stroke (per-recording ``R0``), so that multi-cycle and plateau
-recordings pin it for single-cycle ones. :func:`closure_problems` names recordings whose loops do
-not close from cycle to cycle even with the best track.
+recordings pin it for single-cycle ones (:mod:`.resistance_campaign`). :func:`closure_problems` names
+recordings whose loops do not close from cycle to cycle even with the best track.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import RecordingError
 from .format import Recording
 from .resistance_equations import (
-    TAU_MODEL_S,
     Equations,
-    data_block,
     equations,
     fit_one,
     model_error,
     prepare,
     scale_of,
-    solve_wls,
     start_R,
 )
 
 __all__ = ["HEADER_SIGMA_REL", "HEADER_OFF_SIGMAS", "KAPPA_PRIOR_PER_J", "PINNED_REL", "CLOSURE_FACTOR",
-           "ResistanceTrack", "CampaignResistance", "resistance_track", "campaign_resistance", "closure_problems"]
+           "ResistanceTrack", "resistance_track", "closure_problems"]
 
 #: Relative 1-sigma uncertainty of the header's ``coil_resistance_ohm`` as the prior of ``R0``.
 HEADER_SIGMA_REL = 0.005
@@ -180,9 +175,8 @@ class ResistanceTrack:
                 "notes": list(self.notes)}
 
 
-
-def _track(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float, kappa_source: str,
-           extra: list[str]) -> ResistanceTrack:
+def track_of_fit(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float, kappa_source: str,
+                 extra: list[str]) -> ResistanceTrack:
     """The track of one recording from its (R0, c) and their (scaled) covariance."""
     R0, c = float(theta[0]), float(theta[1])
     cov = model_error(cov, c, float(eq.cond.t[-1] - eq.cond.t[0]))
@@ -240,7 +234,7 @@ def _track(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale: float
         why_not_pinned=why, notes=notes)
 
 
-def _own_fit(rec: Recording, R_ohm: float | None, kappa: float, kappa_sigma: float, header_sigma_rel: float):
+def own_fit(rec: Recording, R_ohm: float | None, kappa: float, kappa_sigma: float, header_sigma_rel: float):
     """Equations and fit of one recording alone, the Joule energy iterated once with the fitted track."""
     cond, R_prior, R_sigma = prepare(rec, R_ohm, header_sigma_rel)
     R_t = np.full(cond.t.size, start_R(rec, cond, R_prior))
@@ -281,174 +275,11 @@ def resistance_track(rec: Recording, R_ohm: float | None = None, *, kappa_per_J:
     kappa = float(kappa_per_J) if known else 0.0
     ks = float(kappa_sigma_per_J) if kappa_sigma_per_J is not None else (0.0 if known else KAPPA_PRIOR_PER_J)
     ks = max(ks, 1e-12)
-    eq, theta, cov, chi2, dof = _own_fit(rec, R_ohm, kappa, ks, header_sigma_rel)
+    eq, theta, cov, chi2, dof = own_fit(rec, R_ohm, kappa, ks, header_sigma_rel)
     ns = scale_of(chi2, dof)
     scale2 = max(1.0, ns * ns) if math.isfinite(ns) else 1.0
-    return _track(eq, theta, cov * scale2, ns, "given" if known else "recording",
-                  ["kappa given"] if known else ["kappa prior (weak)"])
-
-
-@dataclass
-class CampaignResistance:
-    """Resistance tracks of a campaign with one heating rate ``kappa`` (see :func:`campaign_resistance`).
-
-    Attributes
-    ----------
-    kappa_per_J, kappa_sigma_per_J : float
-        The joint heating rate ``alpha / C_th`` [1/J] and its 1-sigma.
-    tracks : dict of str to ResistanceTrack
-        Per recording label.
-    skipped : dict of str to str
-        Recordings left out of the joint fit, and why.
-    not_pinned : list of str
-        ``"<file>: <why>"`` for every track that is not pinned.
-    problems : list of str
-        Recordings whose loops do not close even with the best track (:func:`closure_problems`).
-    """
-
-    kappa_per_J: float
-    kappa_sigma_per_J: float
-    tracks: dict[str, ResistanceTrack]
-    skipped: dict[str, str]
-    not_pinned: list[str]
-    problems: list[str]
-    #: True: a recording without a track uses its header's resistance (:meth:`restricted`).
-    header_elsewhere: bool = False
-    #: (recording, key in ``tracks``) of the recordings fitted: recordings in memory without a file share a
-    #: label, so their keys carry their place in the list (``"flux recording of PS45 (#2)"``).
-    members: tuple = field(default=(), repr=False, compare=False)
-
-    def track_for(self, rec: Recording) -> ResistanceTrack | None:
-        """The track of ``rec`` (the recording object given, else by label), or None."""
-        for member, key in self.members:
-            if member is rec:
-                return self.tracks.get(key)
-        return self.tracks.get(rec.label())
-
-    def restricted(self, labels) -> CampaignResistance:
-        """These tracks only (by recording label); every other recording keeps its header's resistance."""
-        keep = set(labels)
-        return dataclasses.replace(self, tracks={k: v for k, v in self.tracks.items() if k in keep},
-                                   not_pinned=[w for w in self.not_pinned if w.split(": ", 1)[0] in keep],
-                                   header_elsewhere=True)
-
-    def summary(self) -> dict:
-        """JSON-able: kappa, per-recording tracks, what is skipped, not pinned, inconsistent."""
-        return {"kappa_per_J": float(self.kappa_per_J), "kappa_sigma_per_J": float(self.kappa_sigma_per_J),
-                "recordings": [tr.summary() for tr in self.tracks.values()], "skipped": dict(self.skipped),
-                "not_pinned": list(self.not_pinned), "problems": list(self.problems)}
-
-
-def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float = HEADER_SIGMA_REL
-                        ) -> CampaignResistance:
-    """One heating rate ``kappa`` for a campaign (same coil), R0 per recording, by joint least squares.
-
-    Parameters
-    ----------
-    recordings : list of Recording
-        Any kinds; those with voltage at a fixed stroke take part (a moving armature changes Psi at
-        constant current, so neither plateaus nor closure hold).
-    header_sigma_rel : float
-        Relative 1-sigma of each header R as the prior of its R0 [1].
-
-    Returns
-    -------
-    CampaignResistance
-
-    Notes
-    -----
-    Each recording's equations are first fitted alone; their noise scale (``sqrt(chi^2/dof)``, at
-    least 1) weights its equations in the joint fit, so that one recording's model error does not
-    set the weights of the others. The joint fit is done twice, the Joule energy recomputed with
-    the tracks of the first.
-    """
-    keys = _unique_labels(recordings)
-    fits, skipped = _own_fits(recordings, keys, header_sigma_rel)
-    if not fits:
-        raise RecordingError("campaign_resistance", ["no recording with voltage at a fixed stroke"]
-                             + [f"{k}: {v}" for k, v in skipped.items()])
-    m = len(fits)
-    theta, cov = _joint_fit(fits)
-    chi2, n_eq = 0.0, 0
-    for j, (eq, sc, _t) in enumerate(fits):
-        r = (eq.g @ np.array([theta[j], theta[m] * eq.R_ref]) - eq.y) / (eq.sigma * sc)
-        chi2 += float(r @ r)
-        n_eq += r.size
-    dof = n_eq - (m + 1)
-    s2 = max(1.0, chi2 / dof) if dof > 0 else 1.0
-    cov = cov * s2
-    tracks = {}
-    for j, (eq, sc, _t) in enumerate(fits):
-        T = np.array([[1.0, 0.0], [0.0, eq.R_ref]])
-        idx = [j, m]
-        cj = T @ cov[np.ix_(idx, idx)] @ T.T
-        key = keys[next(k for k, r in enumerate(recordings) if r is eq.rec)]
-        tracks[key] = _track(eq, np.array([theta[j], theta[m] * eq.R_ref]), cj, sc, "campaign", ["campaign kappa"])
-    not_pinned = [f"{lab}: {tr.why_not_pinned}" for lab, tr in tracks.items() if not tr.pinned]
-    durations = [float(f[0].cond.t[-1] - f[0].cond.t[0]) for f in fits]
-    kappa_sigma = math.hypot(math.sqrt(cov[m, m]), theta[m] * float(np.median(durations)) / (2.0 * TAU_MODEL_S))
-    return CampaignResistance(kappa_per_J=float(theta[m]), kappa_sigma_per_J=float(kappa_sigma),
-                              tracks=tracks, skipped=skipped, not_pinned=not_pinned,
-                              problems=closure_problems(list(tracks.values())),
-                              members=tuple(zip(recordings, keys, strict=True)))
-
-
-def _unique_labels(recordings: list[Recording]) -> list[str]:
-    """Each recording's ``label()``, with ``" (#k)"`` (its place in the list, from 1) where labels repeat."""
-    labels = [rec.label() for rec in recordings]
-    return [lab if labels.count(lab) == 1 else f"{lab} (#{k + 1})" for k, lab in enumerate(labels)]
-
-
-def _own_fits(recordings: list[Recording], keys: list[str], header_sigma_rel: float) -> tuple[list, dict]:
-    """Each recording with voltage at a fixed stroke fitted alone: ``[equations, noise scale (>= 1), theta]``
-    per recording, and the recordings skipped with why (by ``keys``)."""
-    fits, skipped = [], {}
-    for rec, key in zip(recordings, keys, strict=True):
-        if rec.voltage_V is None:
-            skipped[key] = "no voltage column"
-            continue
-        if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
-            skipped[key] = "the armature moves: Psi changes at constant current"
-            continue
-        try:
-            eq, theta, cov, chi2, dof = _own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
-        except RecordingError as exc:
-            skipped[key] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
-            continue
-        ns = scale_of(chi2, dof)
-        fits.append([eq, max(1.0, ns) if math.isfinite(ns) else 1.0, theta])
-    return fits, skipped
-
-
-def _joint_fit(fits: list) -> tuple[np.ndarray, np.ndarray]:
-    """The joint least squares of :func:`campaign_resistance` (R0 per recording, one kappa), done twice with
-    the Joule energy recomputed from the first's tracks (``fits`` updated in place): estimate and (JtJ)^-1."""
-    m = len(fits)
-    for _ in range(2):
-        rows, rhs = [], []
-        for j, (eq, sc, _theta) in enumerate(fits):
-            Jd, rd = data_block(eq, sc)
-            block = np.zeros((Jd.shape[0], m + 1))
-            block[:, j] = Jd[:, 0]
-            block[:, m] = Jd[:, 1] * eq.R_ref
-            rows.append(block)
-            rhs.append(rd)
-            if eq.R_prior is not None:
-                prior = np.zeros((1, m + 1))
-                prior[0, j] = 1.0 / eq.R_prior_sigma
-                rows.append(prior)
-                rhs.append(np.array([eq.R_prior / eq.R_prior_sigma]))
-        prior = np.zeros((1, m + 1))
-        prior[0, m] = 1.0 / KAPPA_PRIOR_PER_J
-        rows.append(prior)
-        rhs.append(np.zeros(1))
-        theta, cov = solve_wls(list(zip(rows, rhs, strict=True)), m + 1)
-        for j, f in enumerate(fits):
-            eq = f[0]
-            R_t = theta[j] + theta[m] * eq.R_ref * eq.energy_J
-            f[0] = equations(eq.rec, eq.cond, R_t, eq.R_prior, eq.R_prior_sigma)
-            f[2] = theta
-    return theta, cov
+    return track_of_fit(eq, theta, cov * scale2, ns, "given" if known else "recording",
+                        ["kappa given"] if known else ["kappa prior (weak)"])
 
 
 def closure_problems(tracks: list[ResistanceTrack]) -> list[str]:
