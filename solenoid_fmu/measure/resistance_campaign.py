@@ -102,7 +102,8 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
     Each recording's equations are first fitted alone; their noise scale (``sqrt(chi^2/dof)``, at
     least 1) weights its equations in the joint fit, so that one recording's model error does not
     set the weights of the others. The joint fit is done twice, the Joule energy recomputed with
-    the tracks of the first.
+    the tracks of the first. A recording whose loops the joint kappa leaves open while its own track closes
+    them keeps its own track (:func:`_own_where_joint_fails`), and the joint fit is repeated without it (once).
     """
     keys = _unique_labels(recordings)
     fits, skipped = _own_fits(recordings, keys, header_sigma_rel)
