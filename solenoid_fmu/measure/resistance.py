@@ -275,11 +275,17 @@ def resistance_track(rec: Recording, R_ohm: float | None = None, *, kappa_per_J:
     kappa = float(kappa_per_J) if known else 0.0
     ks = float(kappa_sigma_per_J) if kappa_sigma_per_J is not None else (0.0 if known else KAPPA_PRIOR_PER_J)
     ks = max(ks, 1e-12)
-    eq, theta, cov, chi2, dof = own_fit(rec, R_ohm, kappa, ks, header_sigma_rel)
+    return track_alone(own_fit(rec, R_ohm, kappa, ks, header_sigma_rel), known)
+
+
+def track_alone(fit: tuple, kappa_given: bool = False) -> ResistanceTrack:
+    """The track of one recording fitted alone (``fit``: what :func:`own_fit` returns), its covariance scaled
+    by the residual noise where that is above 1."""
+    eq, theta, cov, chi2, dof = fit
     ns = scale_of(chi2, dof)
     scale2 = max(1.0, ns * ns) if math.isfinite(ns) else 1.0
-    return track_of_fit(eq, theta, cov * scale2, ns, "given" if known else "recording",
-                        ["kappa given"] if known else ["kappa prior (weak)"])
+    return track_of_fit(eq, theta, cov * scale2, ns, "given" if kappa_given else "recording",
+                        ["kappa given"] if kappa_given else ["kappa prior (weak)"])
 
 
 def closure_problems(tracks: list[ResistanceTrack]) -> list[str]:

@@ -22,7 +22,7 @@ from .resistance import (
     ResistanceTrack,
     closure_problems,
     own_fit,
-    resistance_track,
+    track_alone,
     track_of_fit,
 )
 from .resistance_equations import TAU_MODEL_S, data_block, equations, scale_of, solve_wls
@@ -106,14 +106,14 @@ def campaign_resistance(recordings: list[Recording], *, header_sigma_rel: float 
     them keeps its own track (:func:`_own_where_joint_fails`), and the joint fit is repeated without it (once).
     """
     keys = _unique_labels(recordings)
-    fits, skipped = _own_fits(recordings, keys, header_sigma_rel)
+    fits, skipped, alone = _own_fits(recordings, keys, header_sigma_rel)
     if not fits:
         raise RecordingError("campaign_resistance", ["no recording with voltage at a fixed stroke"]
                              + [f"{k}: {v}" for k, v in skipped.items()])
     own = {}
     for _ in range(2):  # the joint kappa again without the recordings that need their own
         theta, cov, tracks = _joint_tracks(fits, recordings, keys)
-        moved = _own_where_joint_fails(fits, recordings, keys, tracks, header_sigma_rel)
+        moved = _own_where_joint_fails(fits, recordings, keys, tracks, alone)
         own.update(moved)
         if not moved or len(moved) == len(fits):
             break
@@ -135,8 +135,9 @@ def _key_of(rec: Recording, recordings: list[Recording], keys: list[str]) -> str
 
 
 def _own_where_joint_fails(fits: list, recordings: list[Recording], keys: list[str], tracks: dict,
-                           header_sigma_rel: float) -> dict:
-    """Own tracks (:func:`resistance_track`, kappa from the recording alone) of the recordings whose loops the
+                           alone: dict) -> dict:
+    """Own tracks (kappa from the recording alone: its fit ``alone[key]`` from :func:`_own_fits`, the track
+    :func:`~.resistance.resistance_track` gives) of the recordings whose loops the
     campaign's one kappa leaves open (closure residual over :data:`CLOSURE_FACTOR` times the noise) while
     their own track closes them (pinned or not: its uncertainty goes on with it).
 
@@ -151,7 +152,7 @@ def _own_where_joint_fails(fits: list, recordings: list[Recording], keys: list[s
         tr = tracks[key]
         if not (math.isfinite(tr.closure_rms_Wb) and tr.closure_rms_Wb > CLOSURE_FACTOR * tr.closure_noise_Wb):
             continue
-        mine = resistance_track(eq.rec, header_sigma_rel=header_sigma_rel)
+        mine = track_alone(alone[key])
         if mine.closure_rms_Wb <= CLOSURE_FACTOR * mine.closure_noise_Wb:
             mine.notes.append(f"the campaign's one heating rate left this recording's loops open by "
                               f"{tr.closure_rms_Wb * 1e3:.3g} mWb RMS ({tr.closure_noise_Wb * 1e3:.3g} from the "
@@ -190,10 +191,11 @@ def _unique_labels(recordings: list[Recording]) -> list[str]:
     return [lab if labels.count(lab) == 1 else f"{lab} (#{k + 1})" for k, lab in enumerate(labels)]
 
 
-def _own_fits(recordings: list[Recording], keys: list[str], header_sigma_rel: float) -> tuple[list, dict]:
+def _own_fits(recordings: list[Recording], keys: list[str], header_sigma_rel: float) -> tuple[list, dict, dict]:
     """Each recording with voltage at a fixed stroke fitted alone: ``[equations, noise scale (>= 1), theta]``
-    per recording, and the recordings skipped with why (by ``keys``)."""
-    fits, skipped = [], {}
+    per recording (the joint fit replaces the equations), the recordings skipped with why, and each fit as
+    :func:`~.resistance.own_fit` gave it (both by ``keys``)."""
+    fits, skipped, alone = [], {}, {}
     for rec, key in zip(recordings, keys, strict=True):
         if rec.voltage_V is None:
             skipped[key] = "no voltage column"
@@ -202,13 +204,13 @@ def _own_fits(recordings: list[Recording], keys: list[str], header_sigma_rel: fl
             skipped[key] = "the armature moves: Psi changes at constant current"
             continue
         try:
-            eq, theta, cov, chi2, dof = own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
+            alone[key] = eq, theta, cov, chi2, dof = own_fit(rec, None, 0.0, KAPPA_PRIOR_PER_J, header_sigma_rel)
         except RecordingError as exc:
             skipped[key] = "; ".join(exc.problems) if hasattr(exc, "problems") else str(exc)
             continue
         ns = scale_of(chi2, dof)
         fits.append([eq, max(1.0, ns) if math.isfinite(ns) else 1.0, theta])
-    return fits, skipped
+    return fits, skipped, alone
 
 
 def _joint_fit(fits: list) -> tuple[np.ndarray, np.ndarray]:
