@@ -148,3 +148,39 @@ def test_hysteresis_is_fitted_along_the_heating_corrected_flux():
     _, corrected = fit_hysteresis(tables, {"heating": heating}, recs)
     assert drifting["rms_A"] > half_width_A, drifting
     assert corrected["rms_A"] < 0.2 * half_width_A, corrected
+
+
+@pytest.mark.parametrize("if_error", [0.0, 0.03])
+def test_hysteresis_fit_beside_a_b_h_error_is_chosen_on_recordings_it_was_not_fitted_on(if_error):
+    """An identified B(H) leaves a single-valued error in i_f. Here the demo's true maps with i_f raised by up to
+    ``if_error`` (a sine over the flux range, zero at both ends). The plays fitted alone along the flux triangles
+    take that error in. Fitted beside a single-valued correction (then dropped), they keep only the loops.
+    The eddy recordings, on which neither fit was made, tell the two apart:
+    - on the true maps, the plain fit is kept (the correction would take a unipolar loop's offset from the plays);
+    - with i_f 3 % high, the corrected fit is kept, and it predicts the eddy recordings many times better."""
+    import glob
+    from pathlib import Path
+
+    from solenoid_fmu.loop.gates import hysteresis_chosen
+    from solenoid_fmu.measure import flux_linkage
+    from solenoid_fmu.realtime import MapTables, load_tables
+
+    demo = Path(__file__).resolve().parents[1] / "fitting" / "ps45-demo"
+    truth = json.loads((demo / "truth.json").read_text())  # tests may read the truth
+    t = load_tables(demo / "truth" / "maps")
+    heating = dict(truth["effects"]["heating"], alpha_per_K=truth["coil"]["alpha_per_K"])
+    psi = np.arange(t.n_psi) * t.dpsi_Wb
+    i_f = t._i_f_np * (1.0 + if_error * np.sin(np.pi * psi / psi[-1]))[:, None]
+    tables = MapTables(psi, t.x_m, i_f, t._force_np, meta=t.meta)
+    recs = [read_recording(p) for p in sorted(glob.glob(str(demo / "recordings" / "0[1-4]_flux_*.csv")))
+            + sorted(glob.glob(str(demo / "recordings" / "1[03]_eddy_*.csv")))]
+    _, note = hysteresis_chosen(tables, {"heating": heating}, recs, flux_linkage)
+    errors = note["chosen_by"]
+    assert errors["judged_on"] == ["10_eddy_12p5Aps.csv", "13_eddy_125Aps.csv"]
+    assert note["fitted_on"] == [p.path.name for p in recs[:4]]
+    if if_error == 0.0:
+        assert "single_valued_correction" not in note
+        assert errors["plain"] < errors["with_correction"]
+    else:
+        assert "single_valued_correction" in note
+        assert errors["with_correction"] < 0.2 * errors["plain"], errors

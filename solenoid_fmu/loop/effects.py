@@ -8,7 +8,9 @@ Each fit returns ``(section, note)``: the maps.json ``effects`` section of the e
     not explain, ``i - i_f(Psi, x) - i_eddy`` along the measured flux of the slow (``flux``)
     recordings: rate-independent, so the slow triangles carry it cleanly. Where the plays alone vanish
     (the error an identified B(H) leaves in ``i_f`` is larger than the loops), a single-valued
-    correction ``dh(Psi)`` is fitted beside them and dropped (:data:`HYSTERESIS_CORRECTION_NODES`).
+    correction ``dh(Psi)`` is fitted beside them and dropped (:data:`HYSTERESIS_CORRECTION_NODES`); elsewhere
+    the loop fits both and keeps the one that predicts the recordings neither saw
+    (:func:`solenoid_fmu.loop.gates.hysteresis_chosen`).
 ``eddy``
     Ladder ``i_eddy = G e + sum_k G_k lowpass_tau_k(e)`` with ``e = dPsi/dt`` over a fixed grid of
     time constants (0.1 ms .. 10 ms), non-negative least squares on the ``eddy`` recordings; sections
@@ -55,7 +57,8 @@ LADDER_TAUS_S = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
 #: the plays alone vanish: a B(H) error leaves a single-valued i(Psi) residual that can be larger than the
 #: loops (it then leaves nothing to non-negative play weights); the model keeps its maps' i_f and the plays.
 #: Not always: a unipolar loop's own mean is not its centre, and the correction would take that part of the
-#: hysteresis away from the plays (on true maps the flux error after the fit grows from 1/3 to 0.35).
+#: hysteresis away from the plays (on true maps the flux error after the fit grows from 1/3 to 0.35); where both
+#: fits exist, recordings neither was fitted on choose (:func:`solenoid_fmu.loop.gates.hysteresis_chosen`).
 HYSTERESIS_CORRECTION_NODES = 7
 #: Presliding lengths tried for friction [m].
 PRESLIDING_M = (5e-6, 10e-6, 20e-6, 50e-6, 100e-6)
@@ -125,8 +128,12 @@ def _flux_series(recs: list, tables: MapTables, flux_of):
 
 
 # -- fits ----------------------------------------------------------------------------------------
-def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[dict, dict]:
-    """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note)."""
+def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage, correction: bool = False) -> tuple[dict, dict]:
+    """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note).
+
+    ``correction``: fit the single-valued correction beside the plays (and drop it) from the start; without it,
+    only where the plays alone vanish (module docstring; :func:`solenoid_fmu.loop.gates.fit_effect` fits both and
+    keeps the one that predicts the recordings neither was fitted on better)."""
     recs = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
     if not recs:
         recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
@@ -143,10 +150,13 @@ def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[d
     if not bs:
         raise ImproveError("hysteresis: not identifiable from these recordings: add a slow 'flux' recording "
                            "(triangles from zero current, with a zero-current rest for the voltage offset)")
-    corrected = False
+    corrected = bool(correction)
     try:
-        fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0)
-    except HysteresisError:
+        fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0,
+                                 n_correction=HYSTERESIS_CORRECTION_NODES if corrected else 0)
+    except HysteresisError as exc:
+        if corrected:
+            raise ImproveError(f"hysteresis: {exc}") from None
         try:  # a single-valued error larger than the loops left nothing to the plays: take it out beside them
             fit = fit_play_to_series(bs, hs, n_plays=12, n_shape=7, b0=0.0, n_correction=HYSTERESIS_CORRECTION_NODES)
             corrected = True
@@ -156,7 +166,8 @@ def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage) -> tuple[d
     section = {"thresholds": d["thresholds"], "weights": d["weights"], "shape": d["shape"]}
     note = {"fitted_on": [recording_name(r) for r in used], "rms_A": fit.rms}
     if corrected:
-        note["single_valued_correction"] = ("fitted beside the plays and dropped: without it the plays vanished "
+        note["single_valued_correction"] = ("fitted beside the plays and dropped" if correction else
+                                            "fitted beside the plays and dropped: without it the plays vanished "
                                             "(an i_f error larger than the loops)")
     return section, note
 
