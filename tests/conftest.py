@@ -19,6 +19,17 @@ def small_campaign():
         step_hold_s=0.3, step_sample_rate_Hz=1000.0, pause_s=5.0)
 
 
+def session_shared(tmp_path_factory, name: str):
+    """A folder ``name`` shared by this session's xdist workers (the parent of their base temporary directories), or
+    in the session's own base temporary directory when pytest runs without xdist: there the parent is
+    ``pytest-of-<user>``, which every later session shares too, and a test run alone would read what an earlier
+    session computed with other code (a loop's result cached at 13:08 served a run at 14:01 of stop 46)."""
+    base = tmp_path_factory.getbasetemp()
+    shared = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / name
+    shared.mkdir(exist_ok=True)
+    return shared
+
+
 @pytest.fixture(scope="session")
 def rig_maps(tmp_path_factory):
     """(tables, maps_dir, plain FMU, shared dir): synthetic maps with a single eddy term and their FMU."""
@@ -29,8 +40,7 @@ def rig_maps(tmp_path_factory):
 
     base = tmp_path_factory.mktemp("rig")
     maps_dir = mapsfixture.write_maps(base / "maps")
-    shared = tmp_path_factory.getbasetemp().parent / "campaigns"  # shared by xdist workers
-    shared.mkdir(exist_ok=True)
+    shared = session_shared(tmp_path_factory, "campaigns")
     return load_tables(maps_dir), maps_dir, build_fmu(maps_dir, base / "plain.fmu"), shared
 
 
@@ -60,9 +70,7 @@ def rig_campaign(rig_maps):
 def shared_campaigns(tmp_path_factory):
     """The folder where :mod:`steelcampaigns` draws and identifies the truth-steel campaigns once per session
     (shared by the xdist workers: the parent of their base temporary directories)."""
-    shared = tmp_path_factory.getbasetemp().parent / "steel-campaigns"
-    shared.mkdir(exist_ok=True)
-    return shared
+    return session_shared(tmp_path_factory, "steel-campaigns")
 
 
 def _campaign_of(item):
