@@ -132,8 +132,8 @@ def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage, correction
     """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note).
 
     ``correction``: fit the single-valued correction beside the plays (and drop it) from the start; without it,
-    only where the plays alone vanish (module docstring; :func:`solenoid_fmu.loop.gates.fit_effect` fits both and
-    keeps the one that predicts the recordings neither was fitted on better)."""
+    only where the plays alone vanish (module docstring; :func:`solenoid_fmu.loop.gates.hysteresis_chosen` fits
+    both and keeps the one that predicts the recordings neither was fitted on better)."""
     recs = [r for r in recordings if r.kind == "flux" and r.voltage_V is not None]
     if not recs:
         recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
