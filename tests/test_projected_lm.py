@@ -87,3 +87,33 @@ def test_min_decrease_stops_at_the_first_step_that_gains_less():
             best = cost(x)
     assert gains[-1] < limits[-1] and all(g >= t for g, t in zip(gains[:-1], limits[:-1], strict=True)), (gains, limits)
     assert best == cost(out.x) and best > 20.0 + 1e-3  # stopped short of the minimum, where the steps gain little
+
+
+def test_futile_stops_at_the_first_accepted_step_it_names_and_is_asked_only_there():
+    """``futile(r, decrease)`` is asked after every accepted step, with that step's residuals and the cost it took
+    off, and True stops the fit there (status 4); never True, the fit is the one without it, evaluation by
+    evaluation (stage 2's stronger priors, :data:`~solenoid_fmu.identification.joint.FUTILE_STEPS`)."""
+    res, jac, seen = _rosenbrock()
+    full = projected_lm(res, jac, np.array([-1.2, 1.0]), None, None, 200, ftol=1e-14, project=lambda v: v)
+    n_full = len(seen)
+    asked = []
+
+    def never(r, decrease):
+        asked.append((float(r @ r), decrease))
+        return False
+
+    res, jac, seen = _rosenbrock()
+    same = projected_lm(res, jac, np.array([-1.2, 1.0]), None, None, 200, ftol=1e-14, project=lambda v: v,
+                        futile=never)
+    n_same = len(seen)
+    assert n_same == n_full and np.array_equal(same.x, full.x) and same.status == full.status
+    # asked once per accepted step but the last (which converged), with what that step took off the cost
+    costs = [float(res(seen[0]) @ res(seen[0]))] + [c for c, _ in asked]
+    assert asked and all(d == costs[k] - costs[k + 1] > 0 for k, (_, d) in enumerate(asked)), asked
+    # a predicate true below cost 1 stops at the first accepted step that gets there
+    res, jac, seen = _rosenbrock()
+    out = projected_lm(res, jac, np.array([-1.2, 1.0]), None, None, 200, ftol=1e-14, project=lambda v: v,
+                       futile=lambda r, d: float(r @ r) < 1.0)
+    n_out = len(seen)
+    first = next(c for c, _ in asked if c < 1.0)
+    assert out.status == 4 and float(res(out.x) @ res(out.x)) == first and n_out < n_full

@@ -109,7 +109,8 @@ class LMResult:
 
 
 def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, project=None,
-                 max_step: float | None = None, min_decrease: float = 0.0, solve_step=None) -> LMResult:
+                 max_step: float | None = None, min_decrease: float = 0.0, solve_step=None,
+                 futile=None) -> LMResult:
     """Levenberg-Marquardt with the step projected onto the bounds (a box), or by ``project(x)``
     when given: one residual evaluation (FEM sweep) per trial step and one Jacobian (adjoint solves)
     per accepted step. Status as scipy's least_squares: 0 budget, 2 cost converged (relative
@@ -125,7 +126,9 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
     failure, doubled (up to 4 ``max_step``) after a step the linear model predicted well (rho > 0.75).
     ``solve_step(x, J, r, damping, radius)``, when given, returns the damped step itself (a constrained
     subproblem, e.g. :func:`~.cone_step.cone_step`, within the trust radius, None without one) in place of the
-    unconstrained ``-(J^T J + diag(damping))^-1 J^T r``."""
+    unconstrained ``-(J^T J + diag(damping))^-1 J^T r``. ``futile(r, decrease)``, when given, is asked after every
+    accepted step (its residuals and the cost it took off): True stops the fit there (status 4), for a caller that
+    knows the fit cannot reach what it is run for (:data:`~.joint.FUTILE_STEPS`)."""
     if project is None:
         def project(v):
             return np.clip(v, lo, hi)
@@ -155,6 +158,7 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
         if cn < cost:
             done = (cost - cn) < max(ftol * cost, min(min_decrease, MIN_DECREASE_SHARE * cost))
             rho = (cost - cn) / pred if pred > 0 else 0.0
+            cost_before = cost
             x, r, cost = xn, rn, cn
             mu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-8)
             nu = 2.0
@@ -162,6 +166,8 @@ def projected_lm(residual, jac, x0, lo, hi, max_nfev: int, ftol: float = 1e-4, p
                 radius = min(max(radius, 2.0 * float(np.max(np.abs(d)))), 4.0 * max_step)
             if done:
                 return LMResult(x, 2, "cost converged (ftol)", nfev)
+            if futile is not None and futile(rn, cost_before - cn):
+                return LMResult(x, 4, "stopped: cannot reach its target (futile)", nfev)
             J = jac(x)
         else:
             mu *= nu
