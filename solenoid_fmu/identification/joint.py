@@ -331,10 +331,11 @@ def _stage1(res, jac, pm: PointModel, start_curve, max_nfev: int, groups: np.nda
 
 def _stage2(res, jac, pm: PointModel, curve1, max_nfev: int, groups: np.ndarray, cands: dict, run: bool = True):
     """Stage 2 of :func:`identify_joint`: the node values, once per prior weight of :data:`PRIOR_WEIGHTS`,
-    each run from the one before, until one predicts its held-out groups within :data:`STAGE1_ENOUGH_HELD_OUT`;
-    adds their candidates (with ``theta`` and the weighted Jacobian ``J_w`` there) to ``cands``. Returns the
-    node model, stage 1's node values and, with ``run`` False (no run, no candidate), the weighted Jacobian at
-    stage 1's curve in the node model (the uncertainty of B needs it), else None."""
+    each run from the one before, until one predicts its held-out groups within :data:`STAGE1_ENOUGH_HELD_OUT` (a
+    run before the last stops where it crawls and cannot get there, :data:`FUTILE_STEPS`); adds their candidates
+    (with ``theta`` and the weighted Jacobian ``J_w`` there) to ``cands``. Returns the node model, stage 1's node
+    values and, with ``run`` False (no run, no candidate), the weighted Jacobian at stage 1's curve in the node
+    model (the uncertainty of B needs it), else None."""
     # stage 2, in node values v = (ln chi at the nodes, tail slope): each parameter acts locally, the
     # unimodal projection is an isotonic fit of v itself, the prior a second difference of v
     model, theta1 = fit_to_curve(curve1, H_nodes=stage2_nodes(curve1))
