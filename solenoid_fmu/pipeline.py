@@ -344,12 +344,13 @@ def _export(run: _Run, maps):
     return fmu, native
 
 
-def _improve(run: _Run, maps, recs, fmu, native):
-    """Steps 6 and 7: validate, diagnose and improve the model of ``maps`` (that of ``fmu``); the improved FMUs."""
+def _improve(run: _Run, maps, recs, fmu, native, eddy=None):
+    """Steps 6 and 7: validate, diagnose and improve the model of ``maps`` (that of ``fmu``; ``eddy`` its eddy fit,
+    whose measured eddy current lets the loop try the ladder); the improved FMUs."""
     t0 = run.step("validate and diagnose the FMU on every recording; improve")
     res = improve(maps, recs, run.out / f"{run.name}-improved.fmu", report_dir=run.figures_dir("improved"),
                   before_report_dir=run.figures_dir("validate"), progress=lambda m: run.say(f"   {m}"),
-                  source=str(fmu))
+                  source=str(fmu), eddy_measured=eddy is not None and eddy.measurable)
     native_improved = None
     if native is not None:
         native_improved = _native(run, res.maps, run.out / f"{run.name}-improved-native.fmu", "improved native FMU")
@@ -402,7 +403,7 @@ def _run_pipeline(folder, out_dir, *, geometry=None, preset: str = "full", worke
         ident = _identify(run, geom, ident_recs, suffix)
         maps, eddy = _maps(run, geom, ident.curve, recs, ident_recs)
         fmu, native = _export(run, maps)
-        res, native_improved = _improve(run, maps, recs, fmu, native)
+        res, native_improved = _improve(run, maps, recs, fmu, native, eddy)
         heating = None if round_no == 2 else _second_round_heating(res, ident)
         if heating is None:
             break

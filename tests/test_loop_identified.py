@@ -88,7 +88,7 @@ def loop_on_identified_recordings(folder, curve, work, truth_tables=None, *, pre
     save_maps(maps, work / "maps")
     flux_of = FluxCache()
     tables = load_tables(work / "maps")
-    res = improve_tables(tables, recs, flux_of=flux_of)
+    res = improve_tables(tables, recs, flux_of=flux_of, eddy_measured=eddy is not None and eddy.measurable)
     _, val = split_recordings(recs)
     names = {recording_name(r) for r in val}
     bare = _cases(load_tables(work / "bare"), recs, flux_of=flux_of)

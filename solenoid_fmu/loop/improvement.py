@@ -126,7 +126,8 @@ _cases, _error = simulate_cases, gate_error
 
 # -- the loop --------------------------------------------------------------------------------------
 def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS, min_gain: float = DEFAULT_MIN_GAIN,
-                   threshold: float | None = None, progress=None, flux_of=None, memo=None) -> Improvement:
+                   threshold: float | None = None, progress=None, flux_of=None, memo=None,
+                   eddy_measured: bool = False) -> Improvement:
     """Run the loop on in-process simulations (see the module docstring).
 
     Parameters
@@ -145,6 +146,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         so that each recording's flux is computed once in the run).
     memo : CaseMemo, optional
         Receives the cases of ``tables`` itself (:func:`improve` validates it on them).
+    eddy_measured : bool
+        The maps' eddy fit measured an eddy current (:attr:`solenoid_fmu.maps.EddyFit.measurable`, the pipeline's
+        step 4): the eddy ladder is tried from :data:`~.gates.TRY_THRESHOLD_WITH_EVIDENCE`.
     """
     if not recordings:
         raise ImproveError("improve needs at least one recording")
@@ -173,7 +177,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         effects, tables, cases = add_measured_heating(run, heat, effects, tables, cases, steps, min_gain)
         tried.add("heating")
     while len(kept_effects(steps)) < max_effects:
-        pick, d = pick_effect(cases, threshold, tried, diagnoses)
+        pick, d = pick_effect(cases, threshold, tried, diagnoses, {"eddy"} if eddy_measured else frozenset())
         if pick is None:
             say("no further effect clears the diagnosis threshold")
             break
@@ -266,7 +270,7 @@ class ImproveResult:
 
 def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
             min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None,
-            before_report_dir=None, source: str | None = None) -> ImproveResult:
+            before_report_dir=None, source: str | None = None, eddy_measured: bool = False) -> ImproveResult:
     """Add the effects the residual asks for; report before and after; build the improved FMU if asked.
 
     Everything runs in memory: the model is simulated in this process (:func:`validate_model`; the FMU
@@ -286,6 +290,8 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     source : str, optional
         How the result names the model improved (``ImproveResult.source``, ``improve.json`` ``"fmu"``);
         default the FMU's path, or the maps' name (the pipeline: the FMU it built from them).
+    eddy_measured : bool
+        The maps' G_eddy comes from a fit that measured an eddy current (see :func:`improve_tables`).
 
     Returns
     -------
@@ -309,7 +315,7 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     flux_of = FluxCache()
     memo = CaseMemo()  # the loop's first simulation of the model is its validation before
     found = improve_tables(tables, recs, max_effects=max_effects, min_gain=min_gain, threshold=threshold,
-                           progress=say, flux_of=flux_of, memo=memo)
+                           progress=say, flux_of=flux_of, memo=memo, eddy_measured=eddy_measured)
     improved = with_maps_meta(maps, found.tables)
     improved_tables = maps_tables(improved, where=source)
     maps_dir = None

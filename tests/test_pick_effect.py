@@ -1,0 +1,44 @@
+"""The loop's choice of the next effect to try (:func:`solenoid_fmu.loop.gates.pick_effect`): the try threshold, and
+the lower one for an effect the recordings show by other means (the eddy current the maps' fit measured)."""
+
+from __future__ import annotations
+
+import pytest
+
+from solenoid_fmu.loop import gates
+from solenoid_fmu.loop.diagnosis import DEFAULT_MIN_NRMS, Candidate, Diagnosis
+
+
+def _diagnosis(scores: dict, nrms: float = 10 * DEFAULT_MIN_NRMS) -> Diagnosis:
+    ranking = [Candidate(effect, score=s, explained=s, per_signal={"force_N": s})
+               for effect, s in sorted(scores.items(), key=lambda kv: -kv[1])]
+    return Diagnosis(ranking, "unexplained", 0.25, residual_nrms={"force_N": nrms})
+
+
+@pytest.mark.parametrize(("eddy_score", "evidence", "picked"), [
+    (0.07, frozenset(), None),          # below TRY_THRESHOLD: not tried on the residual alone
+    (0.07, {"eddy"}, "eddy"),           # the maps measured an eddy current: tried from the lower threshold
+    (0.04, {"eddy"}, None),             # below that too
+    (0.12, frozenset(), "eddy"),        # above TRY_THRESHOLD: tried either way
+])
+def test_an_effect_with_evidence_of_its_own_is_tried_from_the_lower_threshold(monkeypatch, eddy_score, evidence,
+                                                                              picked):
+    assert gates.TRY_THRESHOLD_WITH_EVIDENCE < 0.07 < gates.TRY_THRESHOLD < 0.12
+    seen = []
+
+    def fake(cases, threshold, balanced=False):
+        seen.append(balanced)
+        return _diagnosis({"eddy": eddy_score, "friction": 0.06})
+
+    monkeypatch.setattr(gates, "diagnose", fake)
+    diagnoses = []
+    pick, _ = gates.pick_effect([], 0.25, set(), diagnoses, evidence)
+    assert pick == picked
+    # the evidence lowers the threshold of its own effect only: friction (0.06) is never tried here
+    assert len(diagnoses) == len(seen) == (1 if picked else 2)  # no pick: the balanced diagnosis is asked too
+
+
+def test_an_effect_already_tried_is_not_picked_again_even_with_evidence(monkeypatch):
+    monkeypatch.setattr(gates, "diagnose", lambda cases, threshold, balanced=False: _diagnosis({"eddy": 0.3}))
+    pick, _ = gates.pick_effect([], 0.25, {"eddy"}, [], {"eddy"})
+    assert pick is None
