@@ -42,3 +42,15 @@ def test_an_effect_already_tried_is_not_picked_again_even_with_evidence(monkeypa
     monkeypatch.setattr(gates, "diagnose", lambda cases, threshold, balanced=False: _diagnosis({"eddy": 0.3}))
     pick, _ = gates.pick_effect([], 0.25, {"eddy"}, [], {"eddy"})
     assert pick is None
+
+
+def test_the_progress_line_says_why_an_eddy_ladder_under_the_try_threshold_is_tried():
+    from solenoid_fmu.loop.improvement import _adding
+
+    low = Candidate("eddy", score=0.056, explained=0.056, per_signal={"psi_Wb": 0.075})
+    assert _adding(low, True) == ("adding eddy (diagnosis score 0.056; psi_Wb 0.075; tried from 0.05: the maps' eddy "
+                                  "fit measured an eddy current)")
+    assert _adding(low, False) == "adding eddy (diagnosis score 0.056; psi_Wb 0.075)"
+    # above the try threshold, or another effect: no reason to give
+    assert "tried from" not in _adding(Candidate("eddy", 0.3, 0.3, {"psi_Wb": 0.3}), True)
+    assert "tried from" not in _adding(Candidate("friction", 0.06, 0.06, {"force_N": 0.2}), True)

@@ -7,7 +7,8 @@ The loop, on a campaign of recordings and the characteristic maps of a model (or
 2. take the best-ranked candidate that the model can add and has not tried, scoring at least
    :data:`TRY_THRESHOLD` (0.1; the verdict threshold of ``diagnose`` is 0.25, but here the held-out
    gate of step 3 decides) pooled over the signals or on one of them (:func:`~solenoid_fmu.loop.gates.try_score`), while
-   the residual is significant (``hysteresis``,
+   the residual is significant (the eddy ladder from :data:`~solenoid_fmu.loop.gates.TRY_THRESHOLD_WITH_EVIDENCE`,
+   0.05, where the maps' eddy fit measured an eddy current: ``eddy_measured``) (``hysteresis``,
    ``eddy`` as an eddy-current ladder, ``heating``, ``friction``; ``material`` and ``sensor`` are
    not model effects: a wrong B(H) is fixed by ``identify``, a sensor by calibration);
 3. fit its parameters on the *fit* part of the recordings
@@ -81,6 +82,7 @@ from .gates import (
     FEW_PARAMETERS,
     FLUX_FITTED,
     TRY_THRESHOLD,
+    TRY_THRESHOLD_WITH_EVIDENCE,
     LoopRun,
     Step,
     add_measured_heating,
@@ -90,6 +92,7 @@ from .gates import (
     refit_after_heating,
     simulate_cases,
     try_effect,
+    try_score,
 )
 from .heating_evidence import heating_from_resistance
 from .identifiability import not_identifiable
@@ -186,10 +189,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
             steps.append(Step(pick, False, note=f"not identifiable from these recordings: {missing[pick]}"))
             say(f"{pick} is named by the diagnosis but not identifiable from these recordings: {missing[pick]}")
             continue
-        cand = next(c for c in d.ranking if c.effect == pick)
-        best_signal = max(cand.per_signal, key=cand.per_signal.get, default=None)
-        say(f"adding {pick} (diagnosis score {cand.score:.3f}"
-            + (f"; {best_signal} {cand.per_signal[best_signal]:.3f})" if best_signal else ")"))
+        say(_adding(next(c for c in d.ranking if c.effect == pick), eddy_measured))
         kept = try_effect(run, pick, effects, tables, cases, steps, min_gain)
         if kept is not None:
             (effects, tables, cases), note = kept
@@ -205,6 +205,16 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         effects, tables, cases = refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
                                                       heating_first=True, min_fall=0.1 * min_gain, joint=True)
     return Improvement(tables, steps, diagnoses, cases0, cases, missing, timing)
+
+
+def _adding(cand, eddy_measured: bool) -> str:
+    """The progress line of the effect about to be tried (a diagnosis :class:`~.diagnosis.Candidate`): its score,
+    its best signal's, and why an eddy ladder under :data:`TRY_THRESHOLD` is tried."""
+    best = max(cand.per_signal, key=cand.per_signal.get, default=None)
+    why = (f"; tried from {TRY_THRESHOLD_WITH_EVIDENCE:g}: the maps' eddy fit measured an eddy current"
+           if cand.effect == "eddy" and eddy_measured and try_score(cand) < TRY_THRESHOLD else "")
+    return (f"adding {cand.effect} (diagnosis score {cand.score:.3f}"
+            + (f"; {best} {cand.per_signal[best]:.3f}" if best else "") + why + ")")
 
 
 @dataclass(frozen=True)
