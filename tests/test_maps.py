@@ -394,6 +394,23 @@ def test_with_eddy_round_trips(amaps, tmp_path):
         amaps.with_eddy(-1.0, "x")
 
 
+def test_with_eddy_keeps_whether_the_fit_measured_an_eddy_current(amaps, tmp_path):
+    from solenoid_fmu.realtime import load_tables
+
+    loaded = M.load_maps(M.save_maps(amaps.with_eddy(0.004, "3 recordings", measured=True), tmp_path / "m"))
+    assert loaded.metadata["eddy"] == {"G_eddy_S": 0.004, "source": "3 recordings", "measured": True}
+    assert load_tables(tmp_path / "m").eddy.measured is True
+    assert "measured" not in amaps.with_eddy(0.004, "by hand").metadata["eddy"]  # not said: not written
+    with pytest.raises(MapsError, match="measured"):
+        amaps.with_eddy(0.004, "x", measured="yes")
+    # a maps.json that says it in another type is refused, naming the key
+    meta = json.loads((tmp_path / "m" / "maps.json").read_text())
+    meta["eddy"]["measured"] = "yes"
+    (tmp_path / "m" / "maps.json").write_text(json.dumps(meta))
+    with pytest.raises(Exception, match="eddy.measured"):
+        load_tables(tmp_path / "m")
+
+
 def test_maps_are_immutable(amaps):
     with pytest.raises(ValueError, match="read-only"):
         amaps.psi_ix_Wb[0, 0] = 1.0

@@ -48,9 +48,25 @@ def test_the_progress_line_says_why_an_eddy_ladder_under_the_try_threshold_is_tr
     from solenoid_fmu.loop.improvement import _adding
 
     low = Candidate("eddy", score=0.056, explained=0.056, per_signal={"psi_Wb": 0.075})
-    assert _adding(low, True) == ("adding eddy (diagnosis score 0.056; psi_Wb 0.075; tried from 0.05: the maps' eddy "
-                                  "fit measured an eddy current)")
-    assert _adding(low, False) == "adding eddy (diagnosis score 0.056; psi_Wb 0.075)"
+    assert _adding(low, frozenset({"eddy"})) == ("adding eddy (diagnosis score 0.056; psi_Wb 0.075; tried from 0.05: "
+                                                 "the maps' eddy fit measured an eddy current)")
+    assert _adding(low, frozenset()) == "adding eddy (diagnosis score 0.056; psi_Wb 0.075)"
     # above the try threshold, or another effect: no reason to give
-    assert "tried from" not in _adding(Candidate("eddy", 0.3, 0.3, {"psi_Wb": 0.3}), True)
-    assert "tried from" not in _adding(Candidate("friction", 0.06, 0.06, {"force_N": 0.2}), True)
+    assert "tried from" not in _adding(Candidate("eddy", 0.3, 0.3, {"psi_Wb": 0.3}), frozenset({"eddy"}))
+    assert "tried from" not in _adding(Candidate("friction", 0.06, 0.06, {"force_N": 0.2}), frozenset({"eddy"}))
+
+
+@pytest.mark.parametrize(("in_maps", "given", "evidence"), [
+    (True, None, {"eddy"}),    # the maps' eddy fit measured an eddy current (an FMU the pipeline built)
+    (False, None, set()),      # it measured none
+    (None, None, set()),       # the maps do not say (older maps, a G_eddy set by hand)
+    (None, True, {"eddy"}),    # the caller's verdict (the pipeline's step 4) wins over the maps'
+    (True, False, set()),
+])
+def test_the_eddy_evidence_comes_from_the_maps_unless_the_caller_gives_it(in_maps, given, evidence):
+    from types import SimpleNamespace
+
+    from solenoid_fmu.realtime import EddyRecord
+
+    tables = SimpleNamespace(eddy=EddyRecord(G_eddy_S=4e-3, source="fit", measured=in_maps))
+    assert gates.evidence_of(tables, given) == evidence

@@ -42,6 +42,12 @@ def test_summary_json_has_the_documented_fields_and_files(demo):
     assert np.shape(pred["F_sigma_rel"]) == (5, 4) and np.shape(pred["psi_Wb"]) == (5, 4)
     assert np.all(np.diff(pred["psi_Wb"], axis=0) > 0) and np.all(np.asarray(pred["F_sigma_rel"]) > 0)
     assert "what the curve predicts on the working range" in html
+    # both FMUs say that step 4 measured an eddy current: `solenoid-fmu improve` on one of them alone has the
+    # pipeline's evidence for the eddy ladder (the demo's rig has one)
+    from solenoid_fmu.loop.tables import maps_from_fmu
+
+    for key in ("fmu", "improved_fmu"):
+        assert maps_from_fmu(on_disk[key]).metadata["eddy"]["measured"] is True, key
 
 
 def test_pipeline_finds_the_campaigns_true_effects_and_cuts_the_errors(demo):

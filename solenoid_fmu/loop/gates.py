@@ -190,6 +190,14 @@ def add_measured_heating(run, heat: tuple, effects: dict, tables, cases: list, s
                                 min_fall=0.1 * min_gain)
 
 
+def evidence_of(tables, eddy_measured: bool | None = None) -> frozenset:
+    """The effects the recordings show by other means than the residual (``evidence`` of :func:`pick_effect`):
+    ``eddy`` where the maps' eddy fit measured an eddy current, ``eddy_measured`` when given (the pipeline's step
+    4), else maps.json's ``eddy.measured`` (:attr:`solenoid_fmu.realtime.EddyRecord.measured`; not said: no)."""
+    measured = tables.eddy.measured is True if eddy_measured is None else bool(eddy_measured)
+    return frozenset({"eddy"}) if measured else frozenset()
+
+
 def pick_effect(cases: list, threshold: float, tried: set, diagnoses: list, evidence=frozenset()):
     """The next effect to try (None: none) and the diagnosis that names it; appends the diagnoses made.
 

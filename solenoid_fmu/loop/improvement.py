@@ -8,7 +8,8 @@ The loop, on a campaign of recordings and the characteristic maps of a model (or
    :data:`TRY_THRESHOLD` (0.1; the verdict threshold of ``diagnose`` is 0.25, but here the held-out
    gate of step 3 decides) pooled over the signals or on one of them (:func:`~solenoid_fmu.loop.gates.try_score`), while
    the residual is significant (the eddy ladder from :data:`~solenoid_fmu.loop.gates.TRY_THRESHOLD_WITH_EVIDENCE`,
-   0.05, where the maps' eddy fit measured an eddy current: ``eddy_measured``) (``hysteresis``,
+   0.05, where the maps' eddy fit measured an eddy current: ``eddy_measured``, by default maps.json
+   ``eddy.measured``) (``hysteresis``,
    ``eddy`` as an eddy-current ladder, ``heating``, ``friction``; ``material`` and ``sensor`` are
    not model effects: a wrong B(H) is fixed by ``identify``, a sensor by calibration);
 3. fit its parameters on the *fit* part of the recordings
@@ -86,6 +87,7 @@ from .gates import (
     LoopRun,
     Step,
     add_measured_heating,
+    evidence_of,
     gate_error,
     kept_effects,
     pick_effect,
@@ -130,7 +132,7 @@ _cases, _error = simulate_cases, gate_error
 # -- the loop --------------------------------------------------------------------------------------
 def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS, min_gain: float = DEFAULT_MIN_GAIN,
                    threshold: float | None = None, progress=None, flux_of=None, memo=None,
-                   eddy_measured: bool = False) -> Improvement:
+                   eddy_measured: bool | None = None) -> Improvement:
     """Run the loop on in-process simulations (see the module docstring).
 
     Parameters
@@ -149,13 +151,16 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         so that each recording's flux is computed once in the run).
     memo : CaseMemo, optional
         Receives the cases of ``tables`` itself (:func:`improve` validates it on them).
-    eddy_measured : bool
+    eddy_measured : bool, optional
         The maps' eddy fit measured an eddy current (:attr:`solenoid_fmu.maps.EddyFit.measurable`, the pipeline's
-        step 4): the eddy ladder is tried from :data:`~.gates.TRY_THRESHOLD_WITH_EVIDENCE`.
+        step 4): the eddy ladder is tried from :data:`~.gates.TRY_THRESHOLD_WITH_EVIDENCE`. Default: what the
+        maps say (maps.json ``eddy.measured``, written by :func:`solenoid_fmu.maps.with_fitted_eddy`; not said
+        counts as not measured).
     """
     if not recordings:
         raise ImproveError("improve needs at least one recording")
     threshold = DEFAULT_THRESHOLD if threshold is None else threshold
+    evidence = evidence_of(tables, eddy_measured)
     say = progress or (lambda msg: None)
     fit_recs, val_recs = split_recordings(recordings)
     flux_of = FluxCache() if flux_of is None else flux_of  # one eq.-4 flux per recording for the whole run
@@ -180,7 +185,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         effects, tables, cases = add_measured_heating(run, heat, effects, tables, cases, steps, min_gain)
         tried.add("heating")
     while len(kept_effects(steps)) < max_effects:
-        pick, d = pick_effect(cases, threshold, tried, diagnoses, {"eddy"} if eddy_measured else frozenset())
+        pick, d = pick_effect(cases, threshold, tried, diagnoses, evidence)
         if pick is None:
             say("no further effect clears the diagnosis threshold")
             break
@@ -189,7 +194,7 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
             steps.append(Step(pick, False, note=f"not identifiable from these recordings: {missing[pick]}"))
             say(f"{pick} is named by the diagnosis but not identifiable from these recordings: {missing[pick]}")
             continue
-        say(_adding(next(c for c in d.ranking if c.effect == pick), eddy_measured))
+        say(_adding(next(c for c in d.ranking if c.effect == pick), evidence))
         kept = try_effect(run, pick, effects, tables, cases, steps, min_gain)
         if kept is not None:
             (effects, tables, cases), note = kept
@@ -207,12 +212,12 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     return Improvement(tables, steps, diagnoses, cases0, cases, missing, timing)
 
 
-def _adding(cand, eddy_measured: bool) -> str:
+def _adding(cand, evidence: frozenset) -> str:
     """The progress line of the effect about to be tried (a diagnosis :class:`~.diagnosis.Candidate`): its score,
     its best signal's, and why an eddy ladder under :data:`TRY_THRESHOLD` is tried."""
     best = max(cand.per_signal, key=cand.per_signal.get, default=None)
     why = (f"; tried from {TRY_THRESHOLD_WITH_EVIDENCE:g}: the maps' eddy fit measured an eddy current"
-           if cand.effect == "eddy" and eddy_measured and try_score(cand) < TRY_THRESHOLD else "")
+           if cand.effect == "eddy" and "eddy" in evidence and try_score(cand) < TRY_THRESHOLD else "")
     return (f"adding {cand.effect} (diagnosis score {cand.score:.3f}"
             + (f"; {best} {cand.per_signal[best]:.3f}" if best else "") + why + ")")
 
@@ -280,7 +285,7 @@ class ImproveResult:
 
 def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: int = DEFAULT_MAX_EFFECTS,
             min_gain: float = DEFAULT_MIN_GAIN, threshold: float | None = None, progress=None,
-            before_report_dir=None, source: str | None = None, eddy_measured: bool = False) -> ImproveResult:
+            before_report_dir=None, source: str | None = None, eddy_measured: bool | None = None) -> ImproveResult:
     """Add the effects the residual asks for; report before and after; build the improved FMU if asked.
 
     Everything runs in memory: the model is simulated in this process (:func:`validate_model`; the FMU
@@ -300,8 +305,9 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     source : str, optional
         How the result names the model improved (``ImproveResult.source``, ``improve.json`` ``"fmu"``);
         default the FMU's path, or the maps' name (the pipeline: the FMU it built from them).
-    eddy_measured : bool
-        The maps' G_eddy comes from a fit that measured an eddy current (see :func:`improve_tables`).
+    eddy_measured : bool, optional
+        The maps' G_eddy comes from a fit that measured an eddy current (see :func:`improve_tables`; default: what
+        the maps say, maps.json ``eddy.measured``).
 
     Returns
     -------

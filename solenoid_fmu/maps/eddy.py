@@ -217,7 +217,8 @@ def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
 
 def with_fitted_eddy(maps: CharacteristicMaps, recordings) -> tuple[CharacteristicMaps, EddyFit]:
     """The one place the maps' G_eddy is set from recordings: :func:`fit_eddy` on ``recordings``, and the maps
-    with its :attr:`EddyFit.G_model_S` (``eddy.source``: the recordings' file names).
+    with its :attr:`EddyFit.G_model_S` (``eddy.source``: the recordings' file names; ``eddy.measured``:
+    :attr:`EddyFit.measurable`, so that ``solenoid-fmu improve`` on the FMU alone has the pipeline's evidence).
 
     Parameters
     ----------
@@ -232,4 +233,4 @@ def with_fitted_eddy(maps: CharacteristicMaps, recordings) -> tuple[Characterist
     recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
     fit = fit_eddy(recs, maps)
     source = ", ".join(r.path.name if r.path is not None else r.kind for r in recs)
-    return maps.with_eddy(fit.G_model_S, source=source), fit
+    return maps.with_eddy(fit.G_model_S, source=source, measured=bool(fit.measurable)), fit

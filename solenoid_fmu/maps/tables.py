@@ -129,7 +129,7 @@ class CharacteristicMaps:
         """All arrays of the file format by name (read-only views)."""
         return {name: getattr(self, name) for name in ARRAY_UNITS}
 
-    def with_eddy(self, G_eddy_S: float | None, source: str) -> CharacteristicMaps:
+    def with_eddy(self, G_eddy_S: float | None, source: str, measured: bool | None = None) -> CharacteristicMaps:
         """A copy with the eddy-current conductance of paper eq. (2) set.
 
         Parameters
@@ -138,10 +138,15 @@ class CharacteristicMaps:
             Eddy-current parameter [S] (A per V of induced voltage dPsi/dt); None = not identified.
         source : str
             Where the value comes from (recordings, fit), stored in the metadata.
+        measured : bool, optional
+            The fit measured an eddy current (:attr:`~solenoid_fmu.maps.EddyFit.measurable`; maps.json
+            ``eddy.measured``, the loop's evidence for its eddy ladder). None: not said.
         """
         if G_eddy_S is not None and not (math.isfinite(G_eddy_S) and G_eddy_S >= 0):
             raise MapsError(f"G_eddy_S must be a finite value >= 0 S, got {G_eddy_S!r}")
-        eddy = EddyRecord(G_eddy_S=None if G_eddy_S is None else float(G_eddy_S), source=str(source))
+        if measured is not None and not isinstance(measured, bool):
+            raise MapsError(f"measured must be None, True or False, got {measured!r}")
+        eddy = EddyRecord(G_eddy_S=None if G_eddy_S is None else float(G_eddy_S), source=str(source), measured=measured)
         return dataclasses.replace(self, metadata=replace_meta(self.metadata, eddy=eddy))
 
 

@@ -51,7 +51,8 @@ def coil_problems(raw, *, complete: bool = True) -> list[str]:
 
 def eddy_problems(raw, *, complete: bool = True) -> list[str]:
     """What is wrong with maps.json's ``eddy`` section ``raw`` (empty: nothing): ``G_eddy_S`` is null or a
-    finite number >= 0 [S]; with ``complete=False`` the section or the key may be missing."""
+    finite number >= 0 [S], ``measured`` (optional) null or a boolean; with ``complete=False`` the section or
+    the key may be missing."""
     if raw is None and not complete:
         return []
     if not isinstance(raw, dict) or ("G_eddy_S" not in raw and complete):
@@ -59,6 +60,9 @@ def eddy_problems(raw, *, complete: bool = True) -> list[str]:
     g = raw.get("G_eddy_S")
     if g is not None and (not _finite_number(g) or g < 0):
         return [f"eddy.G_eddy_S must be null or a finite number >= 0 S, got {g!r}"]
+    m = raw.get("measured")
+    if m is not None and not isinstance(m, bool):
+        return [f"eddy.measured must be null, true or false, got {m!r}"]
     return []
 
 
@@ -172,12 +176,17 @@ class EddyRecord(_Section):
         Conductance [S] (A per V of dPsi/dt); None: not identified.
     source : str or None
         Where the value comes from (a fit, a refit by ``improve``).
+    measured : bool or None
+        The fit that set ``G_eddy_S`` measured an eddy current (:attr:`solenoid_fmu.maps.EddyFit.measurable`):
+        the loop's evidence for its eddy ladder (:func:`solenoid_fmu.loop.improve_tables`). None: not said
+        (older maps, a value set by hand).
     extra, keys
         What the section holds besides, and its order (:class:`_Section`).
     """
 
     G_eddy_S: float | None = None
     source: str | None = None
+    measured: bool | None = None
     always = ("G_eddy_S",)  # the file format requires the key, null when not identified
 
     @staticmethod
