@@ -127,6 +127,22 @@ def _flux_series(recs: list, tables: MapTables, flux_of):
             yield rec, data
 
 
+def _fit_series(recs: list, effects: dict, tables: MapTables, flux_of):
+    """:func:`_flux_series` of the recordings a flux-fitted effect is fitted on: a recording with a resistance
+    track (``flux_of.tracked``, a :class:`~solenoid_fmu.loop.residuals.FluxCache` that noted the campaign's
+    tracks) with the flux integrated with it, the others with the model's heating taken out of their voltage
+    (:func:`_without_heating`). Each recording once, in the order of ``recs``."""
+    tracked = getattr(flux_of, "tracked", None)
+    own = {id(r): tracked(r) for r in recs} if tracked is not None else {}
+    plain = iter(_without_heating([r for r in recs if own.get(id(r)) is None], effects, flux_of))
+    for rec in recs:
+        flux = own.get(id(rec))
+        if flux is None:
+            yield from _flux_series([next(plain)], tables, flux_of)
+        else:
+            yield from _flux_series([rec], tables, lambda _r, flux=flux: flux)
+
+
 # -- fits ----------------------------------------------------------------------------------------
 def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage, correction: bool = False) -> tuple[dict, dict]:
     """Play-operator hysteresis from slow current-driven recordings with voltage; (section, note).
@@ -139,9 +155,8 @@ def fit_hysteresis(tables, effects, recordings, flux_of=flux_linkage, correction
         recs = [r for r in recordings if r.kind in ("ramp", "eddy") and r.voltage_V is not None]
     if not recs:
         raise ImproveError("hysteresis: no current-driven recording with a voltage to fit on")
-    recs = _without_heating(recs, effects, flux_of)
     bs, hs, used = [], [], []
-    for rec, (t, psi, e, i, x) in _flux_series(recs, tables, flux_of):
+    for rec, (t, psi, e, i, x) in _fit_series(recs, effects, tables, flux_of):
         h = i - _i_f(tables, psi, x) - _eddy_current(tables, effects, e, t)
         step = max(1, psi.size // 3000)  # rate-independent: a decimated series keeps the loops
         bs.append(psi[::step])
@@ -185,9 +200,8 @@ def fit_eddy_ladder(tables, effects, recordings, flux_of=flux_linkage) -> tuple[
     recs = [r for r in recordings if r.kind == "eddy" and r.voltage_V is not None]
     if not recs:
         raise ImproveError("eddy: no 'eddy' recording (fast triangles) to fit the ladder on")
-    recs = _without_heating(recs, effects, flux_of)
     rows, ys, used = [], [], []
-    for rec, (t, psi, e, i, x) in _flux_series(recs, tables, flux_of):
+    for rec, (t, psi, e, i, x) in _fit_series(recs, effects, tables, flux_of):
         y = i - _i_f(tables, psi, x) - _hyst_current(effects, psi)
         cols = [e] + [lowpass(e, t, tau) for tau in LADDER_TAUS_S]
         rows.append(np.column_stack(cols))

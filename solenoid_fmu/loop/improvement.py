@@ -36,6 +36,11 @@ more than a tenth of ``min_gain`` (a drift large enough to measure it); once mor
 an eddy ladder was added meanwhile (their part of the residual is then modelled), jointly with them: they are
 fitted again along the flux the new heating corrects before the trial is judged.
 
+Where the tracks measure the heating, the effects fitted along the eq.-4 flux (hysteresis, eddy ladder) are fitted
+on each recording's flux integrated with its own track (:meth:`~solenoid_fmu.loop.residuals.FluxCache.tracked`,
+measured on the recording, whatever the model's heating), the recordings without one on the heating-corrected flux:
+the model's heating, 20 % off in C_th, left a five-cycle triangle at 1.8 A drifting by 9 % (stop 48, random-8).
+
 Every run starts at its coil temperature above ambient: the run's resistance over the campaign's coldest
 (``FluxCache.ambient_R_ohm``, :func:`~solenoid_fmu.loop.residuals.ambient_resistance`), which the model's
 heating cools from through R_th (``T_start_excess_K``).
@@ -96,7 +101,7 @@ from .gates import (
     try_effect,
     try_score,
 )
-from .heating_evidence import heating_from_resistance
+from .heating_evidence import campaign_tracks, heating_from_resistance, heats
 from .identifiability import not_identifiable
 from .residuals import CaseMemo, FluxCache, recording_name
 from .split import split_recordings
@@ -173,14 +178,9 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
     missing = not_identifiable(recordings, flux_of)
     for effect, what in missing.items():
         say(f"{effect}: not identifiable from these recordings: {what}")
-    timing = ForceTiming(note="not measured: the run's flux_of is no FluxCache, which would carry it")
-    if isinstance(flux_of, FluxCache):  # the simulations below compare the forces with this timing
-        flux_of.note_ambient(recordings)  # and start a heated coil at its temperature above ambient
-        timing = measure_force_timing(tables, recordings, flux_of)
-        flux_of.force_lead_samples = timing.used_lead_samples
-        say(timing.note)
+    timing, camp = _channels(tables, recordings, flux_of, say)
     cases = cases0 = simulate_cases(tables, recordings, say, flux_of, memo)
-    heat = None if "heating" in effects else heating_from_resistance(recordings, tables)
+    heat = None if "heating" in effects else heating_from_resistance(recordings, tables, camp)
     if heat is not None:
         effects, tables, cases = add_measured_heating(run, heat, effects, tables, cases, steps, min_gain)
         tried.add("heating")
@@ -210,6 +210,23 @@ def improve_tables(tables, recordings, *, max_effects: int = DEFAULT_MAX_EFFECTS
         effects, tables, cases = refit_after_heating(run, effects, tables, cases, steps, heat_on_all=True,
                                                       heating_first=True, min_fall=0.1 * min_gain, joint=True)
     return Improvement(tables, steps, diagnoses, cases0, cases, missing, timing)
+
+
+def _channels(tables, recordings, flux_of, say) -> tuple:
+    """What the run measures of the recordings before it simulates them: (the force channel's timing, the campaign's
+    resistance tracks or None, :func:`~.heating_evidence.campaign_tracks`). A :class:`FluxCache` ``flux_of`` keeps
+    them: the simulations compare the forces with that timing and start a heated coil at its temperature above
+    ambient, and where the tracks measure the heating the flux-fitted effects are fitted on their flux."""
+    camp = campaign_tracks(recordings)
+    if not isinstance(flux_of, FluxCache):
+        return ForceTiming(note="not measured: the run's flux_of is no FluxCache, which would carry it"), camp
+    flux_of.note_ambient(recordings)
+    timing = measure_force_timing(tables, recordings, flux_of)
+    flux_of.force_lead_samples = timing.used_lead_samples
+    say(timing.note)
+    if heats(camp):
+        flux_of.note_tracks(camp)
+    return timing, camp
 
 
 def _adding(cand, evidence: frozenset) -> str:
