@@ -18,7 +18,8 @@ Run from the repository root: ``python benchmarks/bench_identify_campaigns.py [N
 (:func:`fresh_campaigns`: every truth steel, random-5 too, with the effects rotated to other steels and protocol
 seeds from 101): recordings nothing was tuned to. The loop's maps are the test's ``medium`` preset (FEM mesh 2.0) unless
 ``--loop-preset`` names another: ``full`` is the pipeline's default (mesh 1.0; its FEM sweep on two processes,
-about 1.5 min more per campaign).
+about 1.5 min more per campaign). ``--unseen-steels 6,7,8,9`` runs two campaigns on each of these random steels
+instead (:func:`unseen_campaigns`): steels no test uses and nothing was tuned to, their truths made first (stop 48).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+import truthsteels as T  # noqa: E402
 from steelcampaigns import CAMPAIGNS, N_CURRENTS, SAMPLES  # noqa: E402
 from test_loop_identified import EXPECTED, loop_on_identified_recordings  # noqa: E402
 from truthsteels import prediction_errors, truth_curve, truth_dir  # noqa: E402
@@ -72,10 +74,37 @@ def fresh_campaigns(seed: int = FRESH_SEED) -> list[tuple[str, str, int]]:
     return [(name, effects[(k + 1) % len(effects)], seed + k) for k, name in enumerate(names)]
 
 
-def main(n: int | None = None, loop_preset: str = "medium", fresh: bool = False, fresh_seed: int = FRESH_SEED
-         ) -> list[dict]:
+#: First protocol seed of :func:`unseen_campaigns`.
+UNSEEN_SEED = 201
+#: The effect sets :func:`unseen_campaigns` cycles through.
+EFFECT_SETS = ("", "heating", "eddy-ladder", "hysteresis", "heating,hysteresis")
+#: Where ``--unseen-steels`` makes its truths (once; about 3 min of CPU each, two at a time).
+UNSEEN_DIR = ROOT / "build" / "unseen-truths"
+
+
+def unseen_campaigns(seeds, first_seed: int = UNSEEN_SEED) -> list[tuple[str, str, int]]:
+    """Two campaigns on each random steel ``random-<seed>`` of ``seeds`` (steels no test uses, nothing was tuned to:
+    their truths are made in :data:`UNSEEN_DIR` first), the effect sets :data:`EFFECT_SETS` in turn, protocol seeds
+    ``first_seed``, ``first_seed`` + 1, ..."""
+    names = T.use_unseen(UNSEEN_DIR, seeds)
+    missing = [nm for nm in names if not (T.truth_dir(nm) / "maps.json").is_file()]
+    if missing:
+        sys.path.insert(0, str(ROOT / "tests" / "data"))
+        import make_truth_steels
+
+        print(f"making the truths of {', '.join(missing)} in {UNSEEN_DIR} (about 3 min of CPU each)", flush=True)
+        with cf.ProcessPoolExecutor(2, initializer=T.use_unseen, initargs=(UNSEEN_DIR, seeds)) as pool:
+            for name, wall in pool.map(make_truth_steels.make_truth, missing):
+                print(f"  {name}: {wall:.0f} s", flush=True)
+    pairs = [(nm, EFFECT_SETS[k % len(EFFECT_SETS)]) for k, nm in enumerate(nm for nm in names for _ in range(2))]
+    return [(nm, fx, first_seed + k) for k, (nm, fx) in enumerate(pairs)]
+
+
+def main(n: int | None = None, loop_preset: str = "medium", fresh: bool = False, fresh_seed: int = FRESH_SEED,
+         unseen: tuple = ()) -> list[dict]:
     rows = []
-    campaigns = fresh_campaigns(fresh_seed) if fresh else CAMPAIGNS
+    campaigns = (unseen_campaigns(unseen, fresh_seed if fresh_seed != FRESH_SEED else UNSEEN_SEED) if unseen
+                 else fresh_campaigns(fresh_seed) if fresh else CAMPAIGNS)
     pool = cf.ProcessPoolExecutor(2) if loop_preset != "medium" else None
     literature = load_material()
     print(f"{'campaign':36s} {'literature Psi':>14s} {'F':>7s} {'identified Psi':>15s} {'F':>7s}  chosen"
@@ -139,6 +168,10 @@ if __name__ == "__main__":
     ap.add_argument("n", nargs="?", type=int, default=None, help="first N campaigns (default all)")
     ap.add_argument("--loop-preset", default="medium", help="maps preset of the loop (default: the test's medium)")
     ap.add_argument("--fresh", action="store_true", help="campaigns the tests never draw (fresh_campaigns)")
-    ap.add_argument("--fresh-seed", type=int, default=FRESH_SEED, help="first protocol seed of --fresh (default 101)")
+    ap.add_argument("--fresh-seed", type=int, default=FRESH_SEED,
+                    help="first protocol seed of --fresh (default 101) or --unseen-steels (default 201)")
+    ap.add_argument("--unseen-steels", default="", metavar="SEEDS",
+                    help="comma-separated seeds of random steels no test uses (6, 7, ...; unseen_campaigns)")
     args = ap.parse_args()
-    main(args.n, args.loop_preset, args.fresh, args.fresh_seed)
+    main(args.n, args.loop_preset, args.fresh, args.fresh_seed,
+         tuple(int(s) for s in args.unseen_steels.split(",") if s.strip()))

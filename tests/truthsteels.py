@@ -47,8 +47,23 @@ def published_names() -> list[str]:
 
 
 def random_names() -> list[str]:
-    """Names of the truths made from random steels: ``random-<seed>``."""
-    return [f"random-{seed}" for seed in RANDOM_SEEDS]
+    """Names of the truths made from random steels: ``random-<seed>`` (and those of :func:`use_unseen`)."""
+    return [f"random-{seed}" for seed in RANDOM_SEEDS + _UNSEEN["seeds"]]
+
+
+#: Random steels no test uses, known after :func:`use_unseen`: their seeds and the directory of their truths.
+_UNSEEN: dict = {"seeds": (), "dir": None}
+
+
+def use_unseen(directory, seeds) -> list[str]:
+    """Also know the random steels ``random-<seed>`` for ``seeds`` (none of :data:`RANDOM_SEEDS`), their truths in
+    ``directory`` (made there on demand by ``tests/data/make_truth_steels.py``: ``benchmarks/
+    bench_identify_campaigns.py --unseen-steels``, the check on steels nothing was tuned to); returns their names."""
+    seeds = tuple(int(s) for s in seeds)
+    if set(seeds) & set(RANDOM_SEEDS):
+        raise ValueError(f"seeds {sorted(set(seeds) & set(RANDOM_SEEDS))} are the tests' own random steels")
+    _UNSEEN.update(seeds=seeds, dir=Path(directory))
+    return [f"random-{s}" for s in seeds]
 
 
 def truth_names(published: bool | None = None) -> list[str]:
@@ -69,7 +84,8 @@ def is_published(name: str) -> bool:
 
 def truth_dir(name: str) -> Path:
     """The directory of a truth (``steel.csv``, ``maps.npz``, ``maps.json``)."""
-    is_published(name)  # refuses unknown names
+    if not is_published(name) and int(name.split("-", 1)[1]) in _UNSEEN["seeds"]:  # (refuses unknown names)
+        return _UNSEEN["dir"] / name
     return TRUTHS_DIR / name
 
 

@@ -109,7 +109,7 @@ def make_truth(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, fl
     """Write one truth directory; returns (name, wall time [s])."""
     t0 = time.perf_counter()
     p = parameters(name)
-    out = T.TRUTHS_DIR / name
+    out = T.truth_dir(name)
     out.mkdir(parents=True, exist_ok=True)
     H, B = roschke_table(p, name)
     comment = (f"True B(H) of the test truth {name}: Roschke's mu_r(B) = 1 + (mu_i - 1 + c_a*B_N) / "
@@ -174,7 +174,7 @@ def extend(name: str, mesh_size: float = T.TRUTH_MESH_SIZE) -> tuple[str, float]
     keep = _kept_metadata(maps)
     keep["provenance"] = {**keep["provenance"], "solver": solver_meta}
     new = invert_maps(xs, maps.i_A, psi, F, Fs, metadata=keep, npsi=NPSI)
-    save_maps(new, T.TRUTHS_DIR / name)
+    save_maps(new, T.truth_dir(name))
     return name, time.perf_counter() - t0
 
 
@@ -185,7 +185,7 @@ def reinvert(name: str) -> None:
     keep = _kept_metadata(maps)
     new = invert_maps(maps.x_m, maps.i_A, maps.psi_ix_Wb, maps.force_ix_N, maps.force_stress_ix_N, metadata=keep,
                       npsi=NPSI)
-    save_maps(new, T.TRUTHS_DIR / name)
+    save_maps(new, T.truth_dir(name))
 
 
 def main(argv=None) -> int:
