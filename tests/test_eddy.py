@@ -139,6 +139,11 @@ def test_eddy_term_counts_as_measured_only_when_the_current_grows_with_the_rate(
     assert not fit(-1e-3, 0.0, r2=0.9).measurable  # a negative conductance never counts
     one_rate = EddyFit(4e-3, -0.2, fit(4e-3, 0.04).per_recording[:1])
     assert rate_split(one_rate.per_recording) is None and not one_rate.measurable
+    # the model carries the conductance only where it is measured: a loop's fitted G would count the loop twice once
+    # the loop adds hysteresis (DC03 #117, stop 48)
+    loop_only = fit(0.0, 0.04)
+    assert loop_only.G_eddy_S > 1e-3 and loop_only.G_model_S == 0.0
+    assert fit(4e-3, 0.04).G_model_S == fit(4e-3, 0.04).G_eddy_S
 
 
 def test_a_rate_growth_that_means_a_lag_below_one_sample_is_not_an_eddy_current():

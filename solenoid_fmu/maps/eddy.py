@@ -65,18 +65,21 @@ class EddyFit:
 
     @property
     def G_model_S(self) -> float:
-        """The conductance for the model [S]: the fit, or 0 when the fit is negative (no measurable eddy
-        current: the data scatter around zero; a negative conductance would feed energy in)."""
-        return max(self.G_eddy_S, 0.0)
+        """The conductance for the model [S]: the fit where the recordings show an eddy current (:attr:`measurable`),
+        else 0. A negative fit would feed energy in (the data scatter around zero); a positive one that is not
+        measured is what a hysteresis loop's current leaves (it changes sign with dPsi/dt too), and in the model it
+        would count that loop twice once the loop adds hysteresis: on DC03 #117 (heating and hysteresis, no eddy
+        current; 0.74 mS, R^2 -0.49) the loop then took an eddy ladder only to refit that G to 0 (stop 48)."""
+        return max(self.G_eddy_S, 0.0) if self.measurable else 0.0
 
     @property
     def measurable(self) -> bool:
-        """True when the recordings show an eddy current: ``G_model_S > 0`` and either the pooled R^2 is at
+        """True when the recordings show an eddy current: ``G_eddy_S > 0`` and either the pooled R^2 is at
         least :data:`R2_MEASURABLE` or the fitted current grows with the rate (:func:`rate_split`: its
         rate-proportional part at the fastest rate at least as large as its rate-independent part; a
         hysteresis loop's current does not grow with the rate, and it spoils R^2 where both are present) by a
         lag of at least one sample (:meth:`split_lag`)."""
-        if not self.G_model_S > 0.0:
+        if not self.G_eddy_S > 0.0:
             return False
         if self.r2 >= R2_MEASURABLE:
             return True
@@ -212,6 +215,9 @@ def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
     if r2 < R2_MEASURABLE and g > 0.0 and lag is not None and dt is not None and 0.0 < lag < dt:
         fit.message += (f"; the part of the current that grows with the rate means a lag of {lag * 1e6:.3g} us behind "
                         f"the flux, below one sample ({dt * 1e6:.3g} us): not counted as an eddy current")
+    if g > 0.0 and not fit.measurable:
+        fit.message += (f"; no eddy current measured (R^2 {r2:.3f} < {R2_MEASURABLE:g} and no current growing with "
+                        "the rate): the model uses G_eddy = 0")
     return fit
 
 
