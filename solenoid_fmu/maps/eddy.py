@@ -216,8 +216,8 @@ def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
         fit.message += (f"; the part of the current that grows with the rate means a lag of {lag * 1e6:.3g} us behind "
                         f"the flux, below one sample ({dt * 1e6:.3g} us): not counted as an eddy current")
     if g > 0.0 and not fit.measurable:
-        fit.message += (f"; no eddy current measured (R^2 {r2:.3f} < {R2_MEASURABLE:g} and no current growing with "
-                        "the rate): the model uses G_eddy = 0")
+        fit.message += (f"; no eddy current measured (R^2 {r2:.3f} < {R2_MEASURABLE:g}, and no current growing with "
+                        "the rate by a lag of at least one sample): the model uses G_eddy = 0")
     return fit
 
 
