@@ -91,7 +91,8 @@ def loop_on_identified_recordings(folder, curve, work, truth_tables=None, *, pre
     res = improve_tables(tables, recs, flux_of=flux_of, eddy_measured=eddy is not None and eddy.measurable)
     _, val = split_recordings(recs)
     names = {recording_name(r) for r in val}
-    bare = _cases(load_tables(work / "bare"), recs, flux_of=flux_of)
+    # maps without an eddy term (step 4 measured none: G_model_S 0) are the bare model: the loop's first simulation
+    bare = res.cases_before if not tables.G_eddy_S else _cases(load_tables(work / "bare"), recs, flux_of=flux_of)
     out = {"found": effects_found([s.effect for s in res.steps if s.accepted], eddy),
            "tried": [(s.effect, s.accepted) for s in res.steps],
            "eddy_r2": None if eddy is None else eddy.r2,
