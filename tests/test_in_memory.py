@@ -19,6 +19,7 @@ import os
 import sys
 from pathlib import Path
 
+from solenoid_fmu.fmu import simulate_model
 from solenoid_fmu.maps import load_maps
 from solenoid_fmu.measure import read_recording
 
@@ -87,10 +88,16 @@ def test_improve_on_maps_in_memory_reads_nothing_it_wrote(rig_maps, rig_campaign
     recs = [read_recording(p) for p in rig_campaign("friction")]
     out = tmp_path / "out"
     out.mkdir()
+    import solenoid_fmu.loop.validation as validation
+
+    validated = []  # the validations' own simulations (the loop's run through loop.gates)
+    monkeypatch.setattr(validation, "simulate_model", lambda *a, **k: validated.append(1) or simulate_model(*a, **k))
     log = ReadLog(monkeypatch)
     res = improve(maps, recs, out / "improved.fmu", report_dir=out / "report")
     monkeypatch.undo()
     assert isinstance(res, ImproveResult) and res.effects_added == ["friction"]
+    # the validations before and after are the loop's first and last simulations, not simulated again
+    assert validated == [] and len(res.after["recordings"]) == len(recs)
     assert res.improved_fmu.is_file() and (res.maps_dir / "maps.npz").is_file()
     assert log.outputs_read(out) == [], "improve read back files it wrote"
     assert log.maps_or_fmus() == [], "improve read maps or an FMU from a file"

@@ -1,5 +1,6 @@
 """The loop's shared parts (issue 15): one excitation ordering for the split and the folds, one fit per parameter."""
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -55,3 +56,29 @@ def test_hysteresis_is_tried_on_its_flux_evidence_alone():
     assert try_score(force_only) == pytest.approx(0.016) and try_score(force_only) < TRY_THRESHOLD
     assert try_score(on_flux) == pytest.approx(0.74)
     assert try_score(friction) == pytest.approx(0.74)
+
+
+def test_the_improved_maps_simulate_alike_only_when_arrays_and_sections_match(rig_maps, rig_campaign):
+    """``improve`` validates the improved maps with the loop's last simulation only when they are the loop's tables
+    (round-tripped through maps.json); an effect section, a conductance or a map value apart says no."""
+    from solenoid_fmu.loop.residuals import CaseMemo
+    from solenoid_fmu.loop.tables import simulates_alike, with_maps_meta
+    from solenoid_fmu.maps import load_maps, maps_tables
+
+    tables, maps_dir, _, _ = rig_maps
+    maps = load_maps(maps_dir)
+    fx = {"friction": {"friction_N": 0.3, "presliding_m": 1e-5}}
+    loop_tables = with_effects(maps_tables(maps), fx)
+    shipped = maps_tables(with_maps_meta(maps, loop_tables))  # what improve builds the improved FMU from
+    assert simulates_alike(shipped, loop_tables)
+    assert not simulates_alike(shipped, with_effects(loop_tables, {"friction": {"friction_N": 0.31,
+                                                                               "presliding_m": 1e-5}}))
+    assert not simulates_alike(shipped, with_effects(loop_tables, fx, G_eddy_S=1e-3))
+    scaled = maps_tables(with_maps_meta(dataclasses.replace(maps, force_N=maps.force_N * (1 + 1e-12)), loop_tables))
+    assert not simulates_alike(shipped, scaled)
+    # the memo keeps a run's cases under each recording only where every recording gave one
+    recs = [read_recording(p) for p in rig_campaign("friction")[:3]]
+    memo = CaseMemo()
+    assert not memo.put_all(shipped, recs, ["a", "b"]) and memo.get(shipped, recs[0]) is None
+    assert memo.put_all(shipped, recs, ["a", "b", "c"]) and memo.get(shipped, recs[2]) == ["c"]
+    assert memo.get(loop_tables, recs[2]) is None  # by the tables object

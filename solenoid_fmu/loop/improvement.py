@@ -105,7 +105,7 @@ from .heating_evidence import campaign_tracks, heating_from_resistance, heats
 from .identifiability import not_identifiable
 from .residuals import CaseMemo, FluxCache, recording_name
 from .split import split_recordings
-from .tables import ImproveError, maps_from_fmu, with_maps_meta
+from .tables import ImproveError, maps_from_fmu, simulates_alike, with_maps_meta
 from .validation import validate_model
 
 __all__ = ["DEFAULT_MAX_EFFECTS", "DEFAULT_MIN_GAIN", "TRY_THRESHOLD", "FEW_PARAMETERS", "FLUX_FITTED", "Step",
@@ -351,6 +351,8 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
                            progress=say, flux_of=flux_of, memo=memo, eddy_measured=eddy_measured)
     improved = with_maps_meta(maps, found.tables)
     improved_tables = maps_tables(improved, where=source)
+    if simulates_alike(improved_tables, found.tables):  # the loop simulated the improved maps last: its cases
+        memo.put_all(improved_tables, recs, found.cases_after)
     maps_dir = None
     if out_fmu is not None:
         maps_dir = save_maps(improved, out_fmu.with_suffix(".maps"))
@@ -361,7 +363,7 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     before = validate_model(tables, recs, label=source, report_dir=before_report_dir, flux_of=flux_of, images=images,
                             memo=memo)
     after = validate_model(improved_tables, recs, label=str(out_fmu or improved.name), report_dir=report_dir,
-                           flux_of=flux_of, images=images)
+                           flux_of=flux_of, images=images, memo=memo)
     result = ImproveResult(improved, improved_tables, found.steps, found.diagnoses, found.not_identifiable,
                            _error_rows(recs, before, after), before, after, source, out_fmu, maps_dir, images,
                            found.force_timing)

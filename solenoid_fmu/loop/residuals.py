@@ -170,6 +170,16 @@ class CaseMemo:
     def put(self, tables, rec, cases: list) -> None:
         self._by_id[(id(tables), id(rec))] = (tables, rec, cases)
 
+    def put_all(self, tables, recs: list, cases: list) -> bool:
+        """Keep ``cases``, simulated on ``tables`` from ``recs`` in their order (as :func:`cases_from_recordings`
+        gives them), under each recording. Only where every recording gave one case (which case is whose is then
+        certain); False, nothing kept, otherwise."""
+        if len(cases) != len(recs):
+            return False
+        for rec, case in zip(recs, cases, strict=True):
+            self.put(tables, rec, [case])
+        return True
+
 
 def recording_name(rec) -> str:
     """How reports name a recording: its file name, or its kind when it has no file."""

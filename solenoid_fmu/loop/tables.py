@@ -12,6 +12,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import MapsError, SolenoidError
 from ..maps import CharacteristicMaps, load_maps, maps_tables
 from ..realtime import MAPS_JSON, MAPS_NPZ, MapTables
@@ -68,3 +70,21 @@ def with_effects(tables: MapTables, effects: dict, G_eddy_S: float | None = None
         return tables.with_meta(effects=effects)
     eddy = dataclasses.replace(tables.eddy, G_eddy_S=float(G_eddy_S), source=G_eddy_source or tables.eddy.source)
     return tables.with_meta(effects=effects, eddy=eddy)
+
+
+#: maps.json keys that describe the file, not the model (:func:`simulates_alike` leaves them out).
+_FILE_KEYS = ("schema", "schema_version", "arrays")
+
+
+def simulates_alike(a: MapTables, b: MapTables) -> bool:
+    """Whether ``a`` and ``b`` give the same simulations: the same arrays the lookups use
+    (:meth:`MapTables.tables`), the same extrapolation flags and the same maps.json sections (the file's own
+    keys aside). The improved maps round-tripped through their maps.json against the loop's tables in memory."""
+    ta, tb = a.tables(), b.tables()
+    if ta.keys() != tb.keys() or not all(np.array_equal(ta[k], tb[k]) for k in ta):
+        return False
+    if (a.extrapolated is None) != (b.extrapolated is None) or (
+            a.extrapolated is not None and not np.array_equal(a.extrapolated, b.extrapolated)):
+        return False
+    return ({k: v for k, v in a.meta.items() if k not in _FILE_KEYS}
+            == {k: v for k, v in b.meta.items() if k not in _FILE_KEYS})
