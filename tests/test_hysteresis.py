@@ -385,6 +385,44 @@ def test_series_fit_recovers_a_plain_play_model_exactly():
     assert fit.rms < 1e-9
 
 
+def test_unimodal_bases_span_exactly_the_sequences_with_one_mode():
+    from scipy.optimize import nnls
+
+    from solenoid_fmu.realtime.hysteresis_fit import unimodal_bases
+
+    bases = unimodal_bases(7)
+    rng = np.random.default_rng(5)
+    for _ in range(20):  # rising to a random mode, falling after it: reached exactly from that mode's basis
+        p = int(rng.integers(0, 7))
+        g = np.r_[np.sort(rng.random(p + 1)), np.sort(rng.random(6 - p))[::-1] * 0.9]
+        g[p] = 1.0
+        assert nnls(bases[p], g)[1] < 1e-12
+    # falling to zero and rising again (a free fit's tail at the top of the widest loops): no mode reaches it
+    dip = np.array([2.0, 1.9, 1.0, 0.0, 0.0, 0.7, 1.5])
+    assert min(nnls(U, dip)[1] for U in bases) > 0.5
+
+
+def test_series_fit_keeps_the_shape_factor_unimodal_unless_told_otherwise():
+    """A rise of h near the widest loops' tips (what an i_f error at the top of the flux leaves in the target) pulls a
+    free shape factor up there; the default fit's g rises to one node and falls after it, and predicts a loop of
+    another amplitude no worse."""
+    true = PlayHysteresis(np.linspace(0.05, 0.6, 8), [0.0, 2.0, 1.0, 0.5, 0.5, 0.2, 0.1, 0.1])
+    b = [triangle([0.0, a, 0.0, a, 0.0], n_per_unit=400) for a in (0.6, 0.9, 1.2)]
+    h = [true.copy().run(x) + 0.02 * np.clip(x - 1.0, 0.0, None) / 0.2 for x in b]
+    free = fit_play_to_series(b, h, n_plays=12, n_shape=7, unimodal_shape=False)
+    uni = fit_play_to_series(b, h, n_plays=12, n_shape=7)
+    g_free, g_uni = free.play.shape[1], uni.play.shape[1]
+    turns = np.diff(np.sign(np.diff(g_uni)[np.abs(np.diff(g_uni)) > 1e-12]))
+    assert np.all(turns <= 0)  # never falls then rises
+    assert np.any(np.diff(np.sign(np.diff(g_free)[np.abs(np.diff(g_free)) > 1e-12])) > 0)  # the free one does
+    held = triangle([0.0, 0.75, 0.0], n_per_unit=400)
+    want = true.copy().run(held)
+    def rms(fit):
+        return np.sqrt(np.mean((fit.predict(held) - want) ** 2))
+
+    assert rms(uni) <= 1.05 * rms(free)
+
+
 # ---------------------------------------------------------------------------------------------
 # The hysteresis modules need numpy and the standard library only (scipy to fit)
 # ---------------------------------------------------------------------------------------------
