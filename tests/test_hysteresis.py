@@ -403,24 +403,30 @@ def test_unimodal_bases_span_exactly_the_sequences_with_one_mode():
 
 
 def test_series_fit_keeps_the_shape_factor_unimodal_unless_told_otherwise():
-    """A rise of h near the widest loops' tips (what an i_f error at the top of the flux leaves in the target) pulls a
-    free shape factor up there; the default fit's g rises to one node and falls after it, and predicts a loop of
-    another amplitude no worse."""
-    true = PlayHysteresis(np.linspace(0.05, 0.6, 8), [0.0, 2.0, 1.0, 0.5, 0.5, 0.2, 0.1, 0.1])
+    """The demo's case (stop 49): loops that narrow towards the top of the flux, and a target that rises at the widest
+    loops' tips (what an i_f error at high flux leaves in it). A free shape factor falls to zero and rises again
+    there, and puts that error into the plays; the default's g rises to one node and falls after it, and predicts a
+    wide minor loop at the top against the true plays 1.6x better (0.052 against 0.085 when written)."""
+    true = PlayHysteresis(np.linspace(0.05, 0.6, 8), [0.0, 2.0, 1.0, 0.5, 0.5, 0.2, 0.1, 0.1],
+                          shape=(np.array([0.0, 0.6, 0.9, 1.2]), np.array([2.0, 0.3, 0.0, 0.0])))
     b = [triangle([0.0, a, 0.0, a, 0.0], n_per_unit=400) for a in (0.6, 0.9, 1.2)]
-    h = [true.copy().run(x) + 0.02 * np.clip(x - 1.0, 0.0, None) / 0.2 for x in b]
+    h = [true.copy().run(x) + 0.3 * np.clip(x - 1.0, 0.0, None) / 0.2 for x in b]
     free = fit_play_to_series(b, h, n_plays=12, n_shape=7, unimodal_shape=False)
     uni = fit_play_to_series(b, h, n_plays=12, n_shape=7)
-    g_free, g_uni = free.play.shape[1], uni.play.shape[1]
-    turns = np.diff(np.sign(np.diff(g_uni)[np.abs(np.diff(g_uni)) > 1e-12]))
-    assert np.all(turns <= 0)  # never falls then rises
-    assert np.any(np.diff(np.sign(np.diff(g_free)[np.abs(np.diff(g_free)) > 1e-12])) > 0)  # the free one does
-    held = triangle([0.0, 0.75, 0.0], n_per_unit=400)
+
+    def turns(g):  # sign changes of the slope: > 0 where g falls and then rises
+        d = np.diff(g)
+        return np.diff(np.sign(d[np.abs(d) > 1e-12]))
+
+    assert np.all(turns(uni.play.shape[1]) <= 0)
+    assert np.any(turns(free.play.shape[1]) > 0)
+    held = triangle([0.0, 1.2, 0.6, 1.2, 0.0], n_per_unit=400)
     want = true.copy().run(held)
+
     def rms(fit):
         return np.sqrt(np.mean((fit.predict(held) - want) ** 2))
 
-    assert rms(uni) <= 1.05 * rms(free)
+    assert rms(uni) < 0.75 * rms(free)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -93,6 +93,7 @@ def fit_weights_and_shape(S: np.ndarray, y: np.ndarray, Phi: np.ndarray | None,
             _, g, _, _ = fit_weights_and_shape(S, y, Phi, row_w, n_iter=n_iter, smooth=smooth, unimodal=unimodal)
         except HysteresisError:
             g = np.ones(Phi.shape[1])
+    bases = unimodal_bases(Phi.shape[1]) if unimodal else None
     prev = np.inf
     for _ in range(int(n_iter)):
         gb = Phi @ g
@@ -101,7 +102,7 @@ def fit_weights_and_shape(S: np.ndarray, y: np.ndarray, Phi: np.ndarray | None,
         Aw = (S @ w)[:, None] * Phi * row_w[:, None]
         if unimodal:
             best = None
-            for U in unimodal_bases(Phi.shape[1]):
+            for U in bases:
                 coef, r = nnls(Aw @ U, target * row_w, maxiter=50 * max(U.shape[1], 10))
                 if best is None or r < best[1]:
                     best = (U @ coef, r)
