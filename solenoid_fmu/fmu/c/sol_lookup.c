@@ -100,7 +100,10 @@ static double solve_psi(double i_A, int j, double w, double psi_guess, int *clam
         if (g == 0.0) break;
         if (g < 0.0) lo = y; else hi = y;
         y_new = d > 0.0 ? y - g / d : 0.5 * (lo + hi);
-        if (!(lo < y_new && y_new < hi)) y_new = 0.5 * (lo + hi);
+        if (!(lo < y_new && y_new < hi)) {
+            if (fabs(y_new - y) <= tol) break; /* converged onto the bracket's end by rounding: y is the root */
+            y_new = 0.5 * (lo + hi);
+        }
         step = fabs(y_new - y);
         y = y_new;
         if (step <= tol) break;

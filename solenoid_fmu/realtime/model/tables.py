@@ -428,6 +428,8 @@ def solve_psi(tab: MapTables, i_A: float, j: int, w: float, psi_guess: float) ->
             hi = y
         y_new = y - g / d if d > 0.0 else 0.5 * (lo + hi)
         if not lo < y_new < hi:
+            if abs(y_new - y) <= tol:
+                break  # converged onto the bracket's end (rounding): y is the root; bisecting took ~40 steps
             y_new = 0.5 * (lo + hi)
         step = abs(y_new - y)
         y = y_new
