@@ -82,3 +82,21 @@ def test_the_improved_maps_simulate_alike_only_when_arrays_and_sections_match(ri
     assert not memo.put_all(shipped, recs, ["a", "b"]) and memo.get(shipped, recs[0]) is None
     assert memo.put_all(shipped, recs, ["a", "b", "c"]) and memo.get(shipped, recs[2]) == ["c"]
     assert memo.get(loop_tables, recs[2]) is None  # by the tables object
+
+
+def test_hysteresis_is_fitted_on_the_recordings_whose_flux_is_pinned():
+    """A heated recording whose resistance track is not pinned carries a drift that opens its loops: left out of the
+    hysteresis fit where a pinned one (or one without a track) remains, named; all kept where none would remain."""
+    from pathlib import Path
+
+    from solenoid_fmu.loop.effects import pinned_first
+
+    recs = [SimpleNamespace(path=Path(f"{k:02d}_flux.csv"), kind="flux") for k in range(4)]
+    verdict = {0: True, 1: False, 2: None, 3: False}  # None: no track (no heating measured there)
+    tracks = SimpleNamespace(track_for=lambda r: None if verdict[int(r.path.name[:2])] is None else
+                             SimpleNamespace(pinned=verdict[int(r.path.name[:2])]))
+    kept, out = pinned_first(recs, SimpleNamespace(tracks=tracks))
+    assert kept == [recs[0], recs[2]] and out == ["01_flux.csv", "03_flux.csv"]
+    assert pinned_first(recs[1::2], SimpleNamespace(tracks=tracks)) == (recs[1::2], [])  # none pinned: all kept
+    assert pinned_first(recs, SimpleNamespace(tracks=None)) == (recs, [])  # no tracks: nothing to judge
+    assert pinned_first(recs, lambda r: None) == (recs, [])  # a plain flux function has no tracks
