@@ -91,12 +91,14 @@ def test_hysteresis_is_fitted_on_the_recordings_whose_flux_is_pinned():
 
     from solenoid_fmu.loop.effects import pinned_first
 
-    recs = [SimpleNamespace(path=Path(f"{k:02d}_flux.csv"), kind="flux") for k in range(4)]
-    verdict = {0: True, 1: False, 2: None, 3: False}  # None: no track (no heating measured there)
-    tracks = SimpleNamespace(track_for=lambda r: None if verdict[int(r.path.name[:2])] is None else
-                             SimpleNamespace(pinned=verdict[int(r.path.name[:2])]))
+    recs = [SimpleNamespace(path=Path(f"{k:02d}_flux.csv"), kind="flux") for k in range(5)]
+    # the flux at the peak uncertain by: 0.3 % (pinned enough), 2 % (the demo's 2 A triangle), no track (no heating
+    # measured there), 1.2 %, 0.9 %
+    sigma = {0: 0.003, 1: 0.02, 2: None, 3: 0.012, 4: 0.009}
+    tracks = SimpleNamespace(track_for=lambda r: None if sigma[int(r.path.name[:2])] is None else
+                             SimpleNamespace(psi_peak_Wb=0.4, psi_peak_sigma_Wb=0.4 * sigma[int(r.path.name[:2])]))
     kept, out = pinned_first(recs, SimpleNamespace(tracks=tracks))
-    assert kept == [recs[0], recs[2]] and out == ["01_flux.csv", "03_flux.csv"]
+    assert kept == [recs[0], recs[2], recs[4]] and out == ["01_flux.csv", "03_flux.csv"]
     assert pinned_first(recs[1::2], SimpleNamespace(tracks=tracks)) == (recs[1::2], [])  # none pinned: all kept
     assert pinned_first(recs, SimpleNamespace(tracks=None)) == (recs, [])  # no tracks: nothing to judge
     assert pinned_first(recs, lambda r: None) == (recs, [])  # a plain flux function has no tracks
