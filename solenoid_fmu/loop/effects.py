@@ -198,7 +198,7 @@ DRIFT_REL = 0.01
 
 
 def pinned_first(recs: list, flux_of) -> tuple[list, list]:
-    """The recordings a hysteresis fit uses: those whose eq.-4 flux is pinned, and the names left out.
+    """The recordings a hysteresis fit uses (their eq.-4 flux pinned within :data:`DRIFT_REL`) and the names left out.
 
     A recording whose resistance track leaves its flux uncertain (``flux_of.tracks``: the coil heats and its R at
     the start or its heating rate is not measured by its own data; uncertain at the peak by more than
