@@ -66,30 +66,39 @@ def virgin_shift(strokes: dict, i_A, G_S: float = 0.0) -> np.ndarray:
     i_A = np.asarray(i_A, dtype=float)
     shifts = []
     for d in strokes.values():
-        loops = [(peak, h) for res in d["cc"].results for peak, h in [_loop_shift(res, i_A, G_S)] if h is not None]
-        top = max((peak for peak, _ in loops), default=0.0)
-        shifts += [h for peak, h in loops if peak >= TOP_LOOP_SHARE * top]
+        top = None  # the highest peak whose loop counts; lower loops are judged only down to its share of it
+        for peak, res in sorted(((_peak(res), res) for res in d["cc"].results), key=lambda pr: -pr[0]):
+            if top is not None and peak < TOP_LOOP_SHARE * top:
+                break
+            h = _loop_shift(res, i_A, G_S)
+            if h is not None:
+                top = peak if top is None else top
+                shifts.append(h)
     return np.min(shifts, axis=0) if shifts else np.zeros_like(i_A)
 
 
-def _loop_shift(res, i_A: np.ndarray, G_S: float) -> tuple[float, np.ndarray | None]:
-    """A flux result's highest peak [A] and its ``h`` [A] at ``i_A`` (:func:`virgin_shift`), None where its loop
-    does not count (too narrow, still open near its tip, or eddy-dominated)."""
-    peak = max((b.peak_A for b in res.branches), default=0.0)
+def _peak(res) -> float:
+    """A flux result's highest current peak [A] (0 without branches)."""
+    return max((b.peak_A for b in res.branches), default=0.0)
+
+
+def _loop_shift(res, i_A: np.ndarray, G_S: float) -> np.ndarray | None:
+    """A flux result's ``h`` [A] at ``i_A`` (:func:`virgin_shift`), None where its loop does not count (too
+    narrow, still open near its tip, or eddy-dominated)."""
     com_i, com_psi, half = corrected_curve_of([res], G_S)
     if com_i.size < 3:
-        return peak, None
+        return None
     h = half / np.maximum(np.gradient(com_psi, com_i), SHIFT_SLOPE_FLOOR)
     k, m = np.searchsorted(com_i, [SHIFT_FROM * com_i[-1], SHIFT_TIP * com_i[-1]])
     if k >= m:
-        return peak, None
+        return None
     if np.max(half[k:m] / np.maximum(com_psi[k:m], 1e-12)) < SHIFT_MIN_LOOP_REL:
-        return peak, None  # no hysteresis to speak of: noise (or an eddy residue) would only move the points
+        return None  # no hysteresis to speak of: noise (or an eddy residue) would only move the points
     if h[m] > 0.5 * float(np.max(h[k:m])):
-        return peak, None  # still open near its tip: a drift, not hysteresis
+        return None  # still open near its tip: a drift, not hysteresis
     if G_S * _median_rate(res) >= float(np.median(h[k:m])):
-        return peak, None  # eddy-dominated: the residual may be the single G's error (an eddy ladder)
-    return peak, np.interp(i_A, com_i, h)
+        return None  # eddy-dominated: the residual may be the single G's error (an eddy ladder)
+    return np.interp(i_A, com_i, h)
 
 
 def _median_rate(res) -> float:
