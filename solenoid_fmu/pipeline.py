@@ -30,7 +30,8 @@ round found.
 words ``diagnose`` uses), ``effects_found`` (those and ``eddy`` where step 4 measured it,
 :func:`effects_found`), ``errors`` (one row per recording and signal: RMS error ``before`` and
 ``after`` improvement in the signal's SI unit, and the same normalized by the measured range),
-the diagnosis, the identification summary and the wall time of every step.
+the diagnosis, the identification summary and the wall time of every step, and ``polarity``: the recordings
+recorded with a negative current, taken mirrored, and the bipolar ones left out (:mod:`solenoid_fmu.measure.polarity`).
 
 Outputs are written to fresh files (atomic writes); a failing step stops the pipeline with its
 error and leaves the results of the steps before it in place. Only one pipeline writes a folder at a time
@@ -68,7 +69,7 @@ from .maps import (
     save_maps,
     with_fitted_eddy,
 )
-from .measure import read_recording, write_recording
+from .measure import read_recording, unipolar, write_recording
 from .report import write_campaign_report
 
 #: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests), "smoke" the
@@ -261,6 +262,7 @@ class _Run:
         self.name = self.folder.resolve().name
         self.geometry, self.workers, self.start_material = geometry, workers, start_material
         self.times: dict = {}
+        self.polarity: dict = {"mirrored": [], "left_out": []}  # recordings taken mirrored or left out (step 1)
         self.t_all = time.perf_counter()
 
     def step(self, label: str) -> float:
@@ -278,14 +280,18 @@ def _read_campaign(run: _Run):
     """Step 1: the campaign's recordings (paths, records, skipped files) and the geometry."""
     t0 = run.step(f"recordings in {run.folder}")
     paths, skipped = find_recordings(run.folder)
-    recs = [read_recording(p) for p in paths]
+    recs, turned, left = unipolar([read_recording(p) for p in paths])
+    run.polarity = {"mirrored": turned, "left_out": left}
     kinds: dict = {}
     for r in recs:
         kinds[r.kind] = kinds.get(r.kind, 0) + 1
     run.say("   " + ", ".join(f"{n} {k}" for k, n in kinds.items())
             + (f"; skipped {len(skipped)} other CSV" if skipped else ""))
+    for line in turned + [f"left out {w}" for w in left]:
+        run.say(f"   {line}")
     if "flux" not in kinds:
-        raise PipelineError(f"{run.folder}: no 'flux' recording: the B(H) identification needs one")
+        raise PipelineError(f"{run.folder}: no 'flux' recording: the B(H) identification needs one"
+                            + "".join(f"; left out {w}" for w in left))
     geom = load_geometry(run.geometry)
     run.done("recordings", t0)
     return paths, skipped, recs, geom
@@ -446,8 +452,8 @@ def _summary(run: _Run, paths, skipped, ident, maps, eddy, fmus, res, first_roun
         "diagnosis": res.diagnoses[0] if res.diagnoses else None, "improve_steps": [s.as_dict() for s in res.steps],
         "identification": ident.summary(),
         "eddy": None if eddy is None else eddy.as_dict(), "recordings": [str(p) for p in paths],
-        "skipped_files": [str(p) for p in skipped], "preset": run.preset, "times_s": run.times,
-        "first_round": first_round,
+        "skipped_files": [str(p) for p in skipped], "polarity": run.polarity, "preset": run.preset,
+        "times_s": run.times, "first_round": first_round,
     }
 
 

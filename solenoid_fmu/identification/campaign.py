@@ -10,7 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import RecordingError
-from ..measure import Recording, commutation_curve, read_recording
+from ..measure import commutation_curve, read_unipolar
 from .campaign_data import HOLD_KINDS, corrected_curve, flux_points, force_points, hold_points
 from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
 from .flux_model import as_curve, as_geometry
@@ -68,17 +68,7 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
     RecordingError
         No ``flux`` recording (or unreadable ones), or none whose branches give a commutation curve.
     """
-    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
-    flux = [r for r in recs if r.kind == "flux"]
-    if not flux:
-        raise RecordingError("identify", [f"no 'flux' recording among {len(recs)} file(s): "
-                                          + ", ".join(f"{Path(r.path).name if r.path else 'in memory'} ({r.kind})"
-                                                      for r in recs)])
-    flux, unusable = absolute_flux(flux)
-    if not flux:
-        raise RecordingError("identify", unusable)
-    for why in unusable:
-        print(f"identify: left out {why}", file=sys.stderr)
+    recs, flux, unusable, turned = _flux_recordings(recordings)
     geom = as_geometry(geometry)
     start = as_curve(start_material)
     mesh_size = DEFAULT_MESH_SIZE if mesh_size is None else float(mesh_size)
@@ -100,6 +90,8 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
     finally:
         if bar is not None:
             bar.close()
+    if turned:
+        res.extra["notes"] = turned + list(res.extra.get("notes", []))
     res.extra["measured_commutation"] = {"i_A": [float(v) for v in cc.i_A], "psi_Wb": [float(v) for v in cc.psi_Wb]}
     if out_csv is not None:
         write_curve_files(res, out_csv, sources=[r.path for r in main])
@@ -107,6 +99,28 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
         write_report(res, report_dir, geometry=geom, other_flux=others_used,
                      force_recordings=[r for r in recs if r.kind == "force_stroke"])
     return res
+
+
+def _flux_recordings(recordings) -> tuple[list, list, list[str], list[str]]:
+    """(every recording, those with a rig's negative current mirrored; the flux recordings to identify from; why
+    each other one was left out: bipolar, :func:`~solenoid_fmu.measure.unipolar`, or not absolute,
+    :func:`~.measured.absolute_flux`; what was mirrored), both lists also printed. Raises RecordingError where no flux
+    recording is left."""
+    recs, turned, bipolar = read_unipolar(recordings)
+    flux = [r for r in recs if r.kind == "flux"]
+    if not flux:
+        raise RecordingError("identify", [f"no 'flux' recording among {len(recs)} file(s): "
+                                          + ", ".join(f"{Path(r.path).name if r.path else 'in memory'} ({r.kind})"
+                                                      for r in recs)] + bipolar)
+    flux, unusable = absolute_flux(flux)
+    unusable = bipolar + unusable
+    if not flux:
+        raise RecordingError("identify", unusable)
+    for line in turned:
+        print(f"identify: {line}", file=sys.stderr)
+    for why in unusable:
+        print(f"identify: left out {why}", file=sys.stderr)
+    return recs, flux, unusable, turned
 
 
 def _by_auglag(main: list, others, geom, start, mesh_size: float, cb, n_currents: int, kwargs: dict):

@@ -80,7 +80,7 @@ from ..errors import MapsError
 from ..fileio import atomic_write_text, check_output_name, jsonable
 from ..fmu import build_fmu
 from ..maps import CharacteristicMaps, maps_tables, save_maps
-from ..measure import Recording, read_recording
+from ..measure import read_unipolar
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_THRESHOLD
 from .force_timing import ForceTiming, measure_force_timing
@@ -334,9 +334,11 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     say = progress or (lambda msg: None)
     if out_fmu is not None:
         out_fmu = check_output_name(out_fmu)  # before any simulation
-    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
+    recs, turned, left = read_unipolar(recordings)  # a rig's negative current mirrored, bipolar ones left out
     if not recs:
-        raise ImproveError("improve needs at least one recording")
+        raise ImproveError("improve needs at least one recording" + "".join(f"; left out {w}" for w in left))
+    for line in turned + [f"left out {w}" for w in left]:
+        say(line)
     if isinstance(model, CharacteristicMaps):
         maps, source = model, source or model.name
     else:

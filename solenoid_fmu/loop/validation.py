@@ -46,7 +46,7 @@ from pathlib import Path
 from ..errors import FmuInputError, RecordingError
 from ..fileio import atomic_write_bytes, atomic_write_text
 from ..fmu import simulate_model
-from ..measure import Recording, flux_linkage, read_recording
+from ..measure import Recording, flux_linkage, read_recording, unipolar
 from ..realtime import MapTables
 from .force_timing import ForceTiming, timing_of_fmu
 from .metrics import ValidationError, summarize, validate_cases
@@ -67,7 +67,8 @@ def _unique_stems(names: list[str]) -> list[str]:
 
 # -- the validation run -------------------------------------------------------------------------------
 def _read_all(recordings) -> list:
-    """Read every recording first, so a bad file fails before any simulation (all problems listed)."""
+    """Read every recording first, so a bad file fails before any simulation (all problems listed); those with a
+    negative current mirrored (:func:`~solenoid_fmu.measure.unipolar`), bipolar ones refused."""
     recs, problems = [], []
     for item in recordings:
         if isinstance(item, Recording):
@@ -79,6 +80,9 @@ def _read_all(recordings) -> list:
             problems += exc.problems
     if problems:
         raise RecordingError("validate: recordings", problems)
+    recs, _, bipolar = unipolar(recs)  # a rig's negative current mirrored (the model is odd in the current)
+    if bipolar:
+        raise RecordingError("validate: recordings", bipolar)
     return recs
 
 

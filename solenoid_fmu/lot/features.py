@@ -22,7 +22,7 @@ import numpy as np
 
 from ..field import load_geometry, read_bh_csv
 from ..maps import force_at, load_maps, psi_at
-from ..measure import read_recording
+from ..measure import read_unipolar
 from ..realtime import COPPER_ALPHA_PER_K
 
 __all__ = ["FEATURES", "FEATURE_H_A_PER_M", "FEATURE_STROKES_M", "friction_estimate_N", "unit_features"]
@@ -113,7 +113,7 @@ def unit_features(recording_paths, out_dir, geometry=None) -> dict:
         Feature name -> float (SI; NaN where the unit does not give it).
     """
     out = Path(out_dir)
-    recs = [read_recording(p) for p in recording_paths]
+    recs = read_unipolar(recording_paths)[0]  # a rig's negative current mirrored, bipolar ones left out
     H_tab, B_tab = read_bh_csv(out / "material" / "material.csv")  # the table as written, interpolated
     geom = geometry if hasattr(geometry, "coil") else load_geometry(geometry)
     maps = load_maps(out / "maps")

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolenoidError
-from ..measure import Recording, flux_linkage, read_recording
+from ..measure import Recording, flux_linkage, read_recording, read_unipolar
 from .interpolate import i_f_at
 from .tables import CharacteristicMaps
 
@@ -172,13 +172,13 @@ def fit_eddy(recordings, maps: CharacteristicMaps) -> EddyFit:
     maps : CharacteristicMaps
         The maps of the same solenoid (i_f(Psi, x)).
     """
-    recs = [r if isinstance(r, Recording) else read_recording(r) for r in recordings]
-    if not recs:
-        raise SolenoidError("fit_eddy needs at least one eddy recording")
+    recs, _, left_out = read_unipolar(recordings)  # a rig's negative current mirrored, bipolar ones left out
     bad = [str(r.path) for r in recs if r.kind != "eddy"]
     if bad:
         raise SolenoidError(f"not eddy recordings: {', '.join(bad)}")
-    per, E, Y, left_out = [], [], [], []
+    if not recs and not left_out:
+        raise SolenoidError("fit_eddy needs at least one eddy recording")
+    per, E, Y = [], [], []
     for rec in recs:
         try:
             e, y, rate, L, dt = eddy_samples(rec, maps)

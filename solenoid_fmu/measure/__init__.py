@@ -4,6 +4,7 @@ from .branches import FluxBranch, peak_curves
 from .conditioning import hold_segments
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
+from .polarity import read_unipolar, unipolar
 from .reader import read_recording, validate_recording
 from .resistance import HEADER_OFF_SIGMAS, ResistanceTrack, closure_problems, resistance_track
 from .resistance_campaign import CampaignResistance, campaign_resistance
@@ -26,7 +27,9 @@ __all__ = [
     "make_recording",
     "peak_curves",
     "read_recording",
+    "read_unipolar",
     "resistance_track",
+    "unipolar",
     "validate_recording",
     "write_recording",
 ]

@@ -11,10 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from ..argtypes import number
+from ..errors import RecordingError
 from ..fileio import refuse_overwriting_inputs, require_directory
 from .flux import flux_linkage
 from .plots import plot_flux
-from .reader import read_recording, validate_recording
+from .polarity import read_unipolar
+from .reader import validate_recording
 
 __all__ = ["add_cli"]
 
@@ -49,7 +51,12 @@ def _cmd_flux(args: argparse.Namespace) -> int:
             args.plot = args.plot.with_name(args.plot.name + ".png")
         require_directory(args.plot.parent, "--plot")
         refuse_overwriting_inputs(args.plot, [args.recording])
-    rec = read_recording(args.recording)
+    recs, turned, left = read_unipolar([args.recording])
+    if left:
+        raise RecordingError("flux", left)
+    rec = recs[0]
+    for line in turned:
+        print(f"note: {line}", file=sys.stderr)
     res = flux_linkage(rec, args.resistance_ohm, resistance=None if args.constant_resistance else "track")
     if args.plot is not None:
         plot_flux(res, args.plot, title=f"{args.recording.name}: Psi(i)")

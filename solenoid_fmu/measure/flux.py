@@ -23,6 +23,7 @@ from ..errors import RecordingError
 from .branches import FluxBranch, peak_curves, split_branches
 from .conditioning import condition
 from .format import Recording
+from .polarity import polarity_problem
 from .resistance import ResistanceTrack, resistance_track
 from .resistance_campaign import CampaignResistance, campaign_resistance
 
@@ -182,7 +183,8 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
     Raises
     ------
     RecordingError
-        No voltage column; no resistance in the header and none can be estimated.
+        No voltage column; no resistance in the header and none can be estimated; a current that is not positive
+        (negative throughout: take it :func:`~.polarity.mirrored`; bipolar: :func:`~.polarity.polarity_problem`).
 
     Notes
     -----
@@ -205,10 +207,9 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
       interpolated onto the grid; the commutation curve is the mean of the two branches,
       averaged over the peaks reaching each level. Only positive current peaks are analysed.
     """
-    if rec.voltage_V is None:
-        raise RecordingError(rec.label(), ["no voltage_V column: the flux linkage needs the coil voltage"])
-    if n_points < 3:
-        raise RecordingError(rec.label(), [f"n_points must be >= 3, got {n_points}"])
+    problems = _input_problems(rec, n_points)
+    if problems:
+        raise RecordingError(rec.label(), problems)
     c = condition(rec)
     t = c.t
     notes = list(c.notes)
@@ -234,6 +235,16 @@ def flux_linkage(rec: Recording, R_ohm: float | None = None, *, n_points: int = 
                       branches=branches, **curve, notes=notes, starts_at_rest=bool(abs(float(i_s[0])) <= c.thr),
                       offset_measured=c.n_anchors > 0, offset_uncertainty_Wb=c.offset_se_V * float(t[-1] - t[0]),
                       track=track, head_rest_samples=_head_rest(c))
+
+
+def _input_problems(rec: Recording, n_points: int) -> list[str]:
+    """Why :func:`flux_linkage` cannot take ``rec``: no voltage, too few grid points, a current that is not one-
+    signed positive (:func:`~.polarity.polarity_problem`); empty when it can."""
+    problems = [] if rec.voltage_V is not None else ["no voltage_V column: the flux linkage needs the coil voltage"]
+    if n_points < 3:
+        problems.append(f"n_points must be >= 3, got {n_points}")
+    why = polarity_problem(rec)
+    return problems + ([why] if why is not None else [])
 
 
 def _head_rest(c) -> int:
