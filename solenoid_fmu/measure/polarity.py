@@ -10,7 +10,13 @@ current up to a peak, so a **bipolar** recording (current of both signs: symmetr
 demagnetization recorded with it) is left out of them, with its file and the time of its first sign change said;
 the real-time model itself is odd in the current and simulates such a recording as it is (``validate``).
 
-Units: SI (A, V, s).
+The force has a sign of its own: ``recordings.md`` counts it positive when it pulls the armature towards the pole,
+and a solenoid's magnetic force does nothing else. A force column that is negative while the coil is energized
+(:func:`force_reversed`) was recorded with the opposite sign convention (a load cell mounted or wired the other way
+round) and is taken negated, said like a mirrored current: left as it is, the identification fitted a curve 140 %
+off the force points and flagged every recording as disagreeing.
+
+Units: SI (A, V, N, s).
 """
 
 from __future__ import annotations
@@ -23,7 +29,8 @@ from .conditioning import noise_std
 from .format import Recording
 from .reader import read_recording
 
-__all__ = ["POLARITY_NOISE_SHARE", "current_sign", "mirrored", "polarity_problem", "read_unipolar", "unipolar"]
+__all__ = ["POLARITY_NOISE_SHARE", "current_sign", "force_reversed", "mirrored", "polarity_problem", "read_unipolar",
+           "unipolar"]
 
 #: An excursion of the current's other sign counts where it exceeds this share of the recording's largest one,
 #: both taken as the 0.5 % / 99.5 % percentiles of the current (:data:`POLARITY_PERCENTILE`): below it, it is the
@@ -39,6 +46,14 @@ POLARITY_PERCENTILE = 0.5
 NOISE_SIGMAS = 5.0
 #: The header key a mirrored recording carries (its value says what was done).
 MIRRORED_KEY = "polarity"
+#: Samples whose |current| exceeds this share of the recording's largest are energized (:func:`force_reversed`).
+ENERGIZED_SHARE = 0.1
+#: A force column counts as reversed where its median over the energized samples lies below zero by more than this
+#: many standard deviations of its white noise (friction and noise move single samples, not the median of a run
+#: whose magnetic force pulls).
+FORCE_NOISE_SIGMAS = 5.0
+#: The header key a recording whose force was taken negated carries.
+FORCE_SIGN_KEY = "force_sign"
 
 
 def current_sign(rec: Recording) -> tuple[int, int]:
@@ -68,6 +83,21 @@ def mirrored(rec: Recording) -> Recording:
                                voltage_V=None if rec.voltage_V is None else -np.asarray(rec.voltage_V))
 
 
+def force_reversed(rec: Recording) -> float | None:
+    """The median force [N] over the energized samples (:data:`ENERGIZED_SHARE`) where it is negative beyond the
+    force's noise (:data:`FORCE_NOISE_SIGMAS`): the column was recorded with the opposite sign; else None (no force
+    column, no energized sample, a force that pulls)."""
+    if rec.force_N is None:
+        return None
+    i = np.abs(np.asarray(rec.current_A, dtype=float))
+    on = i > ENERGIZED_SHARE * float(np.max(i, initial=0.0))
+    if not on.any():
+        return None
+    f = np.asarray(rec.force_N, dtype=float)
+    med = float(np.median(f[on]))
+    return med if med < -FORCE_NOISE_SIGMAS * noise_std(f) and med < 0.0 else None
+
+
 def polarity_problem(rec: Recording) -> str | None:
     """Why the analyses of one-signed excursions (eq.-4 branches, holds, tracks) cannot take ``rec`` as recorded, or
     None: bipolar (the time of its first sign change said), or negative throughout (take it :func:`mirrored`)."""
@@ -84,9 +114,10 @@ def polarity_problem(rec: Recording) -> str | None:
 
 
 def unipolar(recs: list) -> tuple[list, list[str], list[str]]:
-    """(the recordings with a positive current: those recorded with a negative one mirrored, :func:`mirrored`;
-    what was mirrored, one line each; what was left out, bipolar recordings, one reason each). The order of
-    ``recs`` is kept; a recording without current (all zero) is kept as it is. Idempotent."""
+    """(the recordings with a positive current: those recorded with a negative one mirrored, :func:`mirrored`, and
+    a reversed force column negated, :func:`force_reversed`; what was mirrored or negated, one line each; what was
+    left out, bipolar recordings, one reason each). The order of ``recs`` is kept; a recording without current (all
+    zero) is kept as it is. Idempotent."""
     keep, turned, left = [], [], []
     for rec in recs:
         sign, _ = current_sign(rec)
@@ -97,6 +128,11 @@ def unipolar(recs: list) -> tuple[list, list[str], list[str]]:
         elif (why := polarity_problem(rec)) is not None:
             left.append(f"{rec.label()}: {why}")
             continue
+        if (med := force_reversed(rec)) is not None:
+            turned.append(f"{rec.label()}: force negative while the coil is energized (median {med:.4g} N; the "
+                          "format counts a pull towards the pole positive): taken negated")
+            header = {**rec.header, FORCE_SIGN_KEY: "negated: recorded with the opposite sign convention"}
+            rec = dataclasses.replace(rec, header=header, force_N=-np.asarray(rec.force_N))
         keep.append(rec)
     return keep, turned, left
 
