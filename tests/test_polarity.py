@@ -161,3 +161,5 @@ def test_the_pipeline_mirrors_a_negative_recording_and_leaves_a_bipolar_one_out(
     files = {row["file"] for row in summary["errors"]}
     assert neg.name in files and bip.name not in files
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["polarity"] == summary["polarity"]
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert f"Polarity: {neg}" in page and f"Left out: {bip}" in page

@@ -69,6 +69,8 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
                   f"Effects added to the real-time model: {', '.join(summary['effects_added']) or 'none'}.\n\n"
                   + "".join(f"{k}: not identifiable from these recordings: {v}\n"
                             for k, v in summary["not_identifiable"].items())
+                  + "".join(f"Polarity: {line}\n" for line in summary.get("polarity", {}).get("mirrored", []))
+                  + "".join(f"Left out: {line}\n" for line in summary.get("polarity", {}).get("left_out", []))
                   + f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
                   f"Identified material: {summary['material']}"),
          "table": summary_table(summary)},
