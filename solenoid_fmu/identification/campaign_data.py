@@ -49,6 +49,7 @@ import numpy as np
 from ..errors import RecordingError
 from ..measure import (
     HEADER_OFF_SIGMAS,
+    SHIFT_KEY,
     campaign_resistance,
     commutation_curve,
     flux_linkage,
@@ -231,12 +232,20 @@ def resistance_choice(recs) -> tuple:
     all of ``recs``: the flux recordings and the other current-driven ones at a fixed stroke) and whether
     the eq.-4 flux must use them: the coil heats measurably (kappa above :data:`KAPPA_SIGNIFICANT`
     sigmas), a header resistance disagrees with the data beyond the header's own uncertainty, or a
-    recording's own data pin its R more than :data:`HEADER_OFF_SIGMAS` of their sigmas from its header.
+    recording's own data pin its R more than :data:`HEADER_OFF_SIGMAS` of their sigmas from its header, or every
+    header misses the data by one offset (:func:`~solenoid_fmu.measure.resistance_campaign.common_header_offset`).
     Else the header resistance (measured before each run) is the better value: a single-cycle
     recording's track rests on it anyway, and its loop need not close (the remanence of a hysteretic
     steel is several per cent of the peak flux). Returns (campaign tracks, heated, notes)."""
     camp = campaign_resistance(recs)
     why = []
+    if (o := camp.header_offset) is not None:  # every track then, the headers shifted (common_header_offset)
+        why.append(f"every header resistance misses the data by {o['ohm']:+.4g} +- {o['sigma_ohm']:.2g} ohm "
+                   f"({o['recordings']} recordings pin their own R: the voltage taken across more than the coil, or "
+                   "the header's meter off), so every header is taken shifted by it")
+    if camp.header_offset is None and any(SHIFT_KEY in r.header for r in recs):  # the pipeline shifted them
+        why.append("the header resistances were shifted by the campaign's common offset (headers_shifted): "
+                   "estimates, not measurements")
     if camp.kappa_per_J > KAPPA_SIGNIFICANT * camp.kappa_sigma_per_J:
         why.append(f"the coil heats (kappa = {camp.kappa_per_J:.3g} +- {camp.kappa_sigma_per_J:.2g} 1/J)")
     why += [f"{tr.label}: header resistance disagrees with the data (R0 = {tr.R0_ohm:.5g} +- "

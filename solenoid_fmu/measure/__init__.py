@@ -7,12 +7,13 @@ from .format import KINDS, Recording, make_recording
 from .polarity import read_unipolar, unipolar
 from .reader import read_recording, validate_recording
 from .resistance import HEADER_OFF_SIGMAS, ResistanceTrack, closure_problems, resistance_track
-from .resistance_campaign import CampaignResistance, campaign_resistance
+from .resistance_campaign import SHIFT_KEY, CampaignResistance, campaign_resistance, headers_shifted
 from .writer import write_recording
 
 __all__ = [
     "HEADER_OFF_SIGMAS",
     "KINDS",
+    "SHIFT_KEY",
     "CampaignResistance",
     "CommutationCurve",
     "FluxBranch",
@@ -23,6 +24,7 @@ __all__ = [
     "closure_problems",
     "commutation_curve",
     "flux_linkage",
+    "headers_shifted",
     "hold_segments",
     "make_recording",
     "peak_curves",

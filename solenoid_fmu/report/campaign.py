@@ -71,6 +71,8 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
                             for k, v in summary["not_identifiable"].items())
                   + "".join(f"Polarity: {line}\n" for line in summary.get("polarity", {}).get("mirrored", []))
                   + "".join(f"Left out: {line}\n" for line in summary.get("polarity", {}).get("left_out", []))
+                  + "".join(f"Coil resistance: {line}\n"
+                            for line in [summary.get("polarity", {}).get("header_resistance")] if line)
                   + f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
                   f"Identified material: {summary['material']}"),
          "table": summary_table(summary)},
