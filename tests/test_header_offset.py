@@ -29,7 +29,7 @@ def recs(tmp_path_factory):
     """A randomized campaign on DC03's truth (the small rig campaign's recordings all rest on their headers: none
     pins its own R, so there is no offset to find), the recordings the resistance tracks are fitted on."""
     folder = tmp_path_factory.mktemp("leads")
-    random_campaign(load_tables(truth_dir("DC03")), folder, "", seed=402, max_samples=8000)
+    random_campaign(load_tables(truth_dir("DC03")), folder, "", seed=402, max_samples=4000)
     return [r for r in (read_recording(p) for p in sorted((folder / "recordings").glob("*.csv")))
             if r.kind in ("flux", "ramp", "eddy") and r.voltage_V is not None]
 
