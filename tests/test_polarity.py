@@ -2,10 +2,10 @@
 
 The flux linkage of a solenoid without a permanent magnet is odd in the current and its force even, so a campaign
 recorded with i < 0 is the mirror image of the same campaign with i > 0: every command that reads a campaign takes it
-mirrored and must find what it finds on the original, to the bit (negating a float is exact). Before this a negative
-campaign crashed the identification inside numpy (``np.bincount``: negative elements) and ``solenoid-fmu flux`` printed
-607 "peaks" and a flux of -0.3 mWb at the peak. A bipolar recording cannot be analysed as excursions from zero: it is
-left out by file name and the time of its sign change, never a traceback.
+mirrored and must find what it finds on the original (negating a float is exact; the results are compared to 1e-9).
+Before this a negative campaign crashed the identification inside numpy (``np.bincount``: negative elements) and
+``solenoid-fmu flux`` printed 607 "peaks" and a flux of -0.3 mWb at the peak. A bipolar recording cannot be analysed
+as excursions from zero: it is left out by file name and the time of its sign change, never a traceback.
 """
 
 from __future__ import annotations
@@ -38,6 +38,12 @@ def bipolar(rec):
                                current_A=np.concatenate([rec.current_A, -rec.current_A]),
                                voltage_V=np.concatenate([rec.voltage_V, -rec.voltage_V]))
     return both, t.size + int(np.argmax(-rec.current_A < -POLARITY_NOISE_SHARE * np.max(rec.current_A)))
+
+
+def same(got, want):
+    """Equal as far as the arithmetic goes: the mirrored recording's arrays are the original's to the bit, but a
+    BLAS or MKL kernel may take another path for another memory alignment of the same numbers."""
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=0.0)
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +86,8 @@ def identified(campaign):
 
 def test_the_identification_of_a_negative_campaign_is_that_of_the_campaign(campaign, identified):
     got = identify_from_recordings([negated(r) for r in campaign], **SMOKE)
-    assert np.array_equal(got.curve.B_T, identified.curve.B_T)
-    assert np.array_equal(got.curve.H_A_per_m, identified.curve.H_A_per_m)
+    same(got.curve.B_T, identified.curve.B_T)
+    same(got.curve.H_A_per_m, identified.curve.H_A_per_m)
     assert sum("taken mirrored" in n for n in got.extra["notes"]) == len(campaign)
 
 
@@ -96,14 +102,15 @@ def test_a_force_column_of_the_opposite_sign_is_taken_negated(campaign, identifi
     assert all(np.array_equal(a.force_N, b.force_N) for a, b in zip(recs, campaign, strict=True)
                if b.force_N is not None)
     got = identify_from_recordings(flipped, **SMOKE)
-    assert np.array_equal(got.curve.B_T, identified.curve.B_T)
+    same(got.curve.B_T, identified.curve.B_T)
 
 
 def test_the_eddy_fit_of_negative_recordings_is_that_of_the_recordings(campaign, rig_maps):
     maps = load_maps(rig_maps[1])
     eddy = [r for r in campaign if r.kind == "eddy"]
     want, got = fit_eddy(eddy, maps), fit_eddy([negated(r) for r in eddy], maps)
-    assert want.G_eddy_S > 0.0 and got.G_eddy_S == want.G_eddy_S and got.r2 == want.r2
+    assert want.G_eddy_S > 0.0
+    same([got.G_eddy_S, got.r2], [want.G_eddy_S, want.r2])
 
 
 def test_a_bipolar_flux_recording_is_left_out_by_name_and_time(campaign, tmp_path):
@@ -132,8 +139,8 @@ def test_the_flux_command_reads_a_negative_recording_as_the_positive_one(campaig
     out = capsys.readouterr()
     got = json.loads(out.out)
     assert "taken mirrored" in out.err
-    assert got["psi_at_peak_Wb"] == want["psi_at_peak_Wb"] > 0.0
-    assert got["peak_current_A"] == want["peak_current_A"]
+    assert want["psi_at_peak_Wb"] > 0.0
+    same([got["psi_at_peak_Wb"], got["peak_current_A"]], [want["psi_at_peak_Wb"], want["peak_current_A"]])
 
 
 def test_the_pipeline_mirrors_a_negative_recording_and_leaves_a_bipolar_one_out(tmp_path, monkeypatch):
