@@ -32,8 +32,10 @@ words ``diagnose`` uses), ``effects_found`` (those and ``eddy`` where step 4 mea
 ``after`` improvement in the signal's SI unit, and the same normalized by the measured range),
 the diagnosis, the identification summary and the wall time of every step, and ``polarity``: the recordings
 recorded with a negative current, taken mirrored, and the bipolar ones left out (:mod:`solenoid_fmu.measure.polarity`),
-and ``header_resistance``: where every header resistance misses the data by one offset, that the headers were
-shifted by it (:func:`solenoid_fmu.measure.resistance_campaign.headers_shifted`), else null.
+``header_resistance``: where every header resistance misses the data by one offset, that the headers were
+shifted by it (:func:`solenoid_fmu.measure.headers.headers_from_data`), else null, and ``header_resistance_filled`` /
+``header_resistance_missing``: the recordings without a header resistance that got one from their own data, and
+those whose data do not pin it.
 
 Outputs are written to fresh files (atomic writes); a failing step stops the pipeline with its
 error and leaves the results of the steps before it in place. Only one pipeline writes a folder at a time
@@ -71,7 +73,7 @@ from .maps import (
     save_maps,
     with_fitted_eddy,
 )
-from .measure import headers_shifted, read_recording, unipolar, write_recording
+from .measure import headers_from_data, read_recording, unipolar, write_recording
 from .report import write_campaign_report
 
 #: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests), "smoke" the
@@ -265,7 +267,8 @@ class _Run:
         self.geometry, self.workers, self.start_material = geometry, workers, start_material
         self.times: dict = {}
         # recordings taken mirrored or left out, headers shifted (step 1)
-        self.polarity: dict = {"mirrored": [], "left_out": [], "header_resistance": None}
+        self.polarity: dict = {"mirrored": [], "left_out": [], "header_resistance": None,
+                               "header_resistance_filled": [], "header_resistance_missing": []}
         self.t_all = time.perf_counter()
 
     def step(self, label: str) -> float:
@@ -284,14 +287,15 @@ def _read_campaign(run: _Run):
     t0 = run.step(f"recordings in {run.folder}")
     paths, skipped = find_recordings(run.folder)
     recs, turned, left = unipolar([read_recording(p) for p in paths])
-    recs, shifted = headers_shifted(recs)
-    run.polarity = {"mirrored": turned, "left_out": left, "header_resistance": shifted}
+    recs, shifted, filled, missing = headers_from_data(recs)
+    run.polarity = {"mirrored": turned, "left_out": left, "header_resistance": shifted,
+                    "header_resistance_filled": filled, "header_resistance_missing": missing}
     kinds: dict = {}
     for r in recs:
         kinds[r.kind] = kinds.get(r.kind, 0) + 1
     run.say("   " + ", ".join(f"{n} {k}" for k, n in kinds.items())
             + (f"; skipped {len(skipped)} other CSV" if skipped else ""))
-    for line in turned + [f"left out {w}" for w in left] + [shifted] * bool(shifted):
+    for line in turned + [f"left out {w}" for w in left] + [shifted] * bool(shifted) + filled + missing:
         run.say(f"   {line}")
     if "flux" not in kinds:
         raise PipelineError(f"{run.folder}: no 'flux' recording: the B(H) identification needs one"

@@ -16,7 +16,7 @@ import pytest
 from truthsteels import truth_dir
 
 from solenoid_fmu.identification.campaign_data import resistance_choice
-from solenoid_fmu.measure import campaign_resistance, headers_shifted, read_recording
+from solenoid_fmu.measure import campaign_resistance, headers_from_data, read_recording
 from solenoid_fmu.realtime import load_tables
 from solenoid_fmu.rig.protocols import random_campaign
 
@@ -65,10 +65,11 @@ def test_headers_off_one_by_one_are_no_common_offset(recs):
 
 
 def test_the_pipeline_step_shifts_every_header_once(recs):
-    """``headers_shifted`` (the pipeline's step 1): every header, of every kind, moved by the offset; fitted again,
+    """``headers_from_data`` (the pipeline's step 1): every header, of every kind, moved by the offset; fitted again,
     the shifted headers agree with the data and no second offset is found."""
     leads = [with_leads(r) for r in recs]
-    shifted, note = headers_shifted(leads)
+    shifted, note, filled, missing = headers_from_data(leads)
+    assert filled == [] and missing == []
     said = re.search(r"coil_resistance_ohm taken ([-+0-9.e]+) \+-", note or "")
     assert said and abs(float(said.group(1)) - LEADS_OHM) < 0.01
     for a, b in zip(shifted, leads, strict=True):
@@ -76,7 +77,7 @@ def test_the_pipeline_step_shifts_every_header_once(recs):
         assert np.array_equal(a.voltage_V, b.voltage_V)
     camp = campaign_resistance(shifted)
     assert camp.header_offset is None and not any(tr.header_disagrees for tr in camp.tracks.values())
-    assert headers_shifted(recs) == (recs, None)
+    assert headers_from_data(recs) == (recs, None, [], [])
     # the shifted headers are the offset's estimate: the identification integrates eq. 4 with the tracks
     _, heated, notes = resistance_choice(shifted)
     assert heated and "shifted by the campaign's common offset" in notes[0]

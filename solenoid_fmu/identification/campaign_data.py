@@ -48,8 +48,8 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..measure import (
+    ESTIMATED_KEYS,
     HEADER_OFF_SIGMAS,
-    SHIFT_KEY,
     campaign_resistance,
     commutation_curve,
     flux_linkage,
@@ -233,19 +233,20 @@ def resistance_choice(recs) -> tuple:
     the eq.-4 flux must use them: the coil heats measurably (kappa above :data:`KAPPA_SIGNIFICANT`
     sigmas), a header resistance disagrees with the data beyond the header's own uncertainty, or a
     recording's own data pin its R more than :data:`HEADER_OFF_SIGMAS` of their sigmas from its header, or every
-    header misses the data by one offset (:func:`~solenoid_fmu.measure.resistance_campaign.common_header_offset`).
-    Else the header resistance (measured before each run) is the better value: a single-cycle
-    recording's track rests on it anyway, and its loop need not close (the remanence of a hysteretic
-    steel is several per cent of the peak flux). Returns (campaign tracks, heated, notes)."""
+    header misses the data by one offset (:func:`~solenoid_fmu.measure.resistance_campaign.common_header_offset`),
+    or a recording has no header resistance (its track then, the data's own R). Else the header resistance
+    (measured before each run) is the better value: a single-cycle recording's track rests on it anyway,
+    and its loop need not close (the remanence of a hysteretic steel is several per cent of the peak flux).
+    Returns (campaign tracks, heated, notes)."""
     camp = campaign_resistance(recs)
     why = []
     if (o := camp.header_offset) is not None:  # every track then, the headers shifted (common_header_offset)
         why.append(f"every header resistance misses the data by {o['ohm']:+.4g} +- {o['sigma_ohm']:.2g} ohm "
                    f"({o['recordings']} recordings pin their own R: the voltage taken across more than the coil, or "
                    "the header's meter off), so every header is taken shifted by it")
-    if camp.header_offset is None and any(SHIFT_KEY in r.header for r in recs):  # the pipeline shifted them
-        why.append("the header resistances were shifted by the campaign's common offset (headers_shifted): "
-                   "estimates, not measurements")
+    if camp.header_offset is None and any(k in r.header for r in recs for k in ESTIMATED_KEYS):  # the pipeline's
+        why.append("header resistances were shifted by the campaign's common offset or filled in from the "
+                   "recordings' data (headers_from_data): estimates, not measurements")
     if camp.kappa_per_J > KAPPA_SIGNIFICANT * camp.kappa_sigma_per_J:
         why.append(f"the coil heats (kappa = {camp.kappa_per_J:.3g} +- {camp.kappa_sigma_per_J:.2g} 1/J)")
     why += [f"{tr.label}: header resistance disagrees with the data (R0 = {tr.R0_ohm:.5g} +- "
@@ -253,8 +254,11 @@ def resistance_choice(recs) -> tuple:
     why += [f"{tr.label}: its own data pin R at the start to {tr.R0_ohm:.6g} +- {tr.R0_sigma_ohm:.2g} ohm, "
             f"{tr.header_off_sigmas:.0f} sigma from the header's {tr.header_R_ohm:.6g} ohm"
             for tr in camp.tracks.values() if tr.header_overruled]
+    why += [f"{tr.label}: no header resistance (R at the start {tr.R0_ohm:.6g} +- {tr.R0_sigma_ohm:.2g} ohm from its "
+            "data)" for tr in camp.tracks.values() if tr.header_R_ohm is None]
     heated = bool(why)
-    off = [key for key, tr in camp.tracks.items() if tr.header_disagrees or tr.header_overruled]
+    off = [key for key, tr in camp.tracks.items() if tr.header_disagrees or tr.header_overruled or
+           tr.header_R_ohm is None]
     if heated and len(why) == len(off):  # no heating: only those recordings' headers are at odds with their data
         camp = camp.restricted(off)
         notes = [f"resistance: R(t) tracks used for eq. 4 in {len(off)} recording(s) because {'; '.join(why)}; "

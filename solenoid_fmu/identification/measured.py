@@ -13,10 +13,15 @@ __all__ = ["absolute_flux", "group_flux", "groups_of", "force_stroke_curve", "fo
 
 def absolute_flux(recs) -> tuple[list, list[str]]:
     """The flux recordings whose eq.-4 flux is absolute (start at zero current, a rest for the
-    voltage offset), and a reason for each one left out."""
+    voltage offset), and a reason for each one left out (also one without a resistance to integrate eq. 4 with:
+    no header R, no plateau, not back at its start)."""
     keep, reasons = [], []
     for rec in recs:
-        fr = flux_linkage(rec)
+        try:  # without a header R, the recording's own track (what the flags below read does not depend on R)
+            fr = flux_linkage(rec, resistance="track" if rec.coil_resistance_ohm is None else None)
+        except RecordingError as exc:
+            reasons.append(f"{rec.label()}: {'; '.join(exc.problems)}")
+            continue
         if not fr.starts_at_rest:
             reasons.append(f"{rec.label()}: starts energized ({fr.current_A[0]:.4g} A), its flux has an unknown "
                            "integration constant")

@@ -80,7 +80,7 @@ from ..errors import MapsError
 from ..fileio import atomic_write_text, check_output_name, jsonable
 from ..fmu import build_fmu
 from ..maps import CharacteristicMaps, maps_tables, save_maps
-from ..measure import read_unipolar
+from ..measure import ESTIMATED_KEYS, headers_from_data, read_unipolar
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_THRESHOLD
 from .force_timing import ForceTiming, measure_force_timing
@@ -339,6 +339,11 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
         raise ImproveError("improve needs at least one recording" + "".join(f"; left out {w}" for w in left))
     for line in turned + [f"left out {w}" for w in left]:
         say(line)
+    if any(r.voltage_V is not None and r.coil_resistance_ohm is None for r in recs) and \
+            not any(k in r.header for r in recs for k in ESTIMATED_KEYS):  # else done (the pipeline's step 1)
+        recs, _, filled, missing = headers_from_data(recs)
+        for line in filled + missing:
+            say(line)
     if isinstance(model, CharacteristicMaps):
         maps, source = model, source or model.name
     else:

@@ -4,27 +4,29 @@ from .branches import FluxBranch, peak_curves
 from .conditioning import hold_segments
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
+from .headers import ESTIMATED_KEYS, HeaderFix, headers_from_data
 from .polarity import read_unipolar, unipolar
 from .reader import read_recording, validate_recording
 from .resistance import HEADER_OFF_SIGMAS, ResistanceTrack, closure_problems, resistance_track
-from .resistance_campaign import SHIFT_KEY, CampaignResistance, campaign_resistance, headers_shifted
+from .resistance_campaign import CampaignResistance, campaign_resistance
 from .writer import write_recording
 
 __all__ = [
     "HEADER_OFF_SIGMAS",
     "KINDS",
-    "SHIFT_KEY",
+    "ESTIMATED_KEYS",
     "CampaignResistance",
     "CommutationCurve",
     "FluxBranch",
     "FluxResult",
+    "HeaderFix",
     "Recording",
     "ResistanceTrack",
     "campaign_resistance",
     "closure_problems",
     "commutation_curve",
     "flux_linkage",
-    "headers_shifted",
+    "headers_from_data",
     "hold_segments",
     "make_recording",
     "peak_curves",

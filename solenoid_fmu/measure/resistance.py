@@ -58,7 +58,6 @@ from .resistance_equations import (
     model_error,
     prepare,
     scale_of,
-    start_R,
 )
 
 __all__ = ["HEADER_SIGMA_REL", "HEADER_OFF_SIGMAS", "KAPPA_PRIOR_PER_J", "PINNED_REL", "CLOSURE_FACTOR",
@@ -194,7 +193,7 @@ def track_of_fit(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale:
     counts = {kind: eq.kinds.count(kind) for kind in ("plateau", "closure", "end")}
     constraints = [f"{counts['plateau']} plateau(s)"] * bool(counts["plateau"]) + \
         [f"{counts['closure']} closure(s)"] * bool(counts["closure"]) + ["end rest (weak)"] * bool(counts["end"]) + \
-        ["header R prior"] * (eq.R_prior is not None) + extra
+        [f"{eq.R_prior_source} prior"] + extra
     cl = np.array([kd == "closure" for kd in eq.kinds], dtype=bool)
     cl_rms = cl_noise = math.nan
     if cl.any():
@@ -206,8 +205,8 @@ def track_of_fit(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale:
         part0 = abs(gp[0]) * s0
         part1 = abs(gp[1]) * sc
         if part0 >= part1:
-            src = f"rests on the header's R (+-{100 * eq.R_prior_sigma / eq.R_prior:.2g} %)" \
-                if eq.R_prior is not None and s0 > 0.5 * eq.R_prior_sigma else "is not pinned by the data"
+            src = f"rests on the {eq.R_prior_source} (+-{100 * eq.R_prior_sigma / eq.R_prior:.2g} %)" \
+                if s0 > 0.5 * eq.R_prior_sigma else "is not pinned by the data"
             why = f"R at the start {src}"
         else:
             why = "the heating rate kappa is not pinned (no plateaus or closing cycles late enough to see it)"
@@ -234,12 +233,15 @@ def track_of_fit(eq: Equations, theta: np.ndarray, cov: np.ndarray, noise_scale:
         why_not_pinned=why, notes=notes)
 
 
-def own_fit(rec: Recording, R_ohm: float | None, kappa: float, kappa_sigma: float, header_sigma_rel: float):
-    """Equations and fit of one recording alone, the Joule energy iterated once with the fitted track."""
-    cond, R_prior, R_sigma = prepare(rec, R_ohm, header_sigma_rel)
-    R_t = np.full(cond.t.size, start_R(rec, cond, R_prior))
+def own_fit(rec: Recording, R_ohm: float | None, kappa: float, kappa_sigma: float, header_sigma_rel: float,
+            source: str = "given R"):
+    """Equations and fit of one recording alone, the Joule energy iterated once with the fitted track; ``R_ohm``
+    (+- ``header_sigma_rel``, named ``source``) the prior of R at the start, default the header's
+    (:func:`~.resistance_equations.prepare`)."""
+    cond, R_prior, R_sigma, source = prepare(rec, R_ohm, header_sigma_rel, source)
+    R_t = np.full(cond.t.size, R_prior)
     for _ in range(2):
-        eq = equations(rec, cond, R_t, R_prior, R_sigma)
+        eq = equations(rec, cond, R_t, R_prior, R_sigma, source)
         theta, cov, chi2, dof = fit_one(eq, kappa, kappa_sigma)
         R_t = theta[0] + theta[1] * eq.energy_J
     return eq, theta, cov, chi2, dof

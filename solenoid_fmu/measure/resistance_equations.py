@@ -16,7 +16,7 @@ from .branches import branch_on_grid, split_branches
 from .conditioning import Conditioned, condition, noise_std
 from .format import Recording
 
-__all__ = ["TAU_MODEL_S", "NOISE_FLOOR_REL", "adc_noise",
+__all__ = ["TAU_MODEL_S", "NOISE_FLOOR_REL", "NO_HEADER_SIGMA_REL", "adc_noise",
            "PLATEAU_PARTS", "MIN_BRANCH", "PEAK_TOL", "Equations", "cumtrapz", "equations", "prepare",
            "start_R", "solve_wls", "data_block", "fit_one", "scale_of", "model_error"]
 
@@ -27,6 +27,8 @@ MIN_BRANCH = 50  # samples a branch needs for closure (coarser ones interpolate 
 PEAK_TOL = 0.003  # peaks within 0.3 % (or 4 sigma of the current noise) count as the same height
 #: Floor of the per-sample voltage noise, relative to the recording's largest |U|: a 24-bit ADC's step.
 NOISE_FLOOR_REL = 2.0 ** -24
+#: Relative 1-sigma of the prior of R at the start where the header has no coil_resistance_ohm (:func:`prepare`).
+NO_HEADER_SIGMA_REL = 0.1
 
 
 @dataclass
@@ -43,9 +45,10 @@ class Equations:
     B: np.ndarray          # (n, 2): B0, B1 per sample
     A: np.ndarray          # (n,)
     peak: int
-    R_prior: float | None
+    R_prior: float
     R_prior_sigma: float
     R_ref: float           # c = kappa R_ref
+    R_prior_source: str = "header"  # what R_prior came from (:func:`prepare`)
 
 
 def adc_noise(u: np.ndarray) -> float:
@@ -64,8 +67,8 @@ def cumtrapz(y: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float | None,
-               R_prior_sigma: float) -> Equations:
+def equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float,
+              R_prior_sigma: float, R_prior_source: str = "header") -> Equations:
     """All data equations of a recording, with the Joule energy from the current track ``R_t``."""
     t, uc, ic = cond.t, cond.uc, cond.ic
     E = cumtrapz(R_t * ic * ic, t)
@@ -125,7 +128,7 @@ def equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float
             kinds.append("closure")
     # (c) end rest of a single-cycle recording: Psi_end - Psi_0 = remanence, small
     peak = int(np.argmax(i_s))
-    if len(desc) == 1 and cond.head is not None and cond.tail is not None and R_prior is not None:
+    if len(desc) == 1 and cond.head is not None and cond.tail is not None:
         n = t.size
         psi_hdr = A - B[:, 0] * R_prior
         lo, hi = max(0, peak - cond.k_smooth), min(n, peak + cond.k_smooth + 1)
@@ -137,21 +140,30 @@ def equations(rec: Recording, cond: Conditioned, R_t: np.ndarray, R_prior: float
         add(np.array([1.0, -1.0]), np.array([n - 1, 0]), sigma_end, "end")
     return Equations(rec=rec, cond=cond, y=np.array(ys), g=np.array(gs).reshape(-1, 2), sigma=np.array(ss),
                       kinds=kinds, energy_J=E, B=B, A=A, peak=peak, R_prior=R_prior, R_prior_sigma=R_prior_sigma,
-                      R_ref=R_nom)
+                     R_ref=R_nom, R_prior_source=R_prior_source)
 
 
-def prepare(rec: Recording, R_ohm: float | None, header_sigma_rel: float) -> tuple[Conditioned, float | None, float]:
+def prepare(rec: Recording, R_ohm: float | None, header_sigma_rel: float,
+            source: str = "given R") -> tuple[Conditioned, float, float, str]:
+    """The conditioned recording, the prior of R at the start [ohm], its 1-sigma [ohm] and what it came from
+    (``Equations.R_prior_source``): ``R_ohm`` (``source``), else
+    the header's ``coil_resistance_ohm`` (each +- ``header_sigma_rel``), else (recordings.md: the header key is
+    optional) :func:`start_R`'s estimate from the recording's own plateaus or mean U/i, +-
+    :data:`NO_HEADER_SIGMA_REL`: loose, so that the data decide where they pin R, and R0 stays defined (and
+    its track reported not pinned) where they do not."""
     cond = condition(rec)
     R_prior = R_ohm if R_ohm is not None else rec.coil_resistance_ohm
-    if R_prior is not None and not (math.isfinite(R_prior) and R_prior > 0):
+    if R_prior is None:
+        R_prior = start_R(rec, cond)
+        return cond, R_prior, NO_HEADER_SIGMA_REL * R_prior, "rough R from the recording's mean U/i (no header R)"
+    if not (math.isfinite(R_prior) and R_prior > 0):
         raise RecordingError(rec.label(), [f"resistance must be > 0 ohm, got {R_prior!r}"])
-    return cond, R_prior, (header_sigma_rel * R_prior if R_prior is not None else math.inf)
+    return cond, R_prior, header_sigma_rel * R_prior, "header R" if R_ohm is None else source
 
 
-def start_R(rec: Recording, cond: Conditioned, R_prior: float | None) -> float:
-    """The R the first Joule energy is computed with: the prior, else a plateau or closure mean."""
-    if R_prior is not None:
-        return R_prior
+def start_R(rec: Recording, cond: Conditioned) -> float:
+    """A rough R [ohm] from the recording alone: the mean U/i over its current plateaus, else over all of it
+    (the flux back at its start value at the end; off by the remanence)."""
     mask = cond.plateau_mask()
     sel = mask if mask.any() else slice(None)
     R = float(np.sum(cond.uc[sel] * cond.ic[sel]) / np.sum(cond.ic[sel] ** 2)) if mask.any() else \
@@ -184,8 +196,7 @@ def data_block(eq: Equations, scale: float = 1.0) -> tuple[np.ndarray, np.ndarra
 def fit_one(eq: Equations, kappa: float, kappa_sigma: float) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(R0, c), unscaled covariance, chi^2 and dof of the data equations; kappa prior as ``c = kappa R_ref``."""
     blocks = [data_block(eq)]
-    if eq.R_prior is not None:
-        blocks.append((np.array([[1.0, 0.0]]) / eq.R_prior_sigma, np.array([eq.R_prior / eq.R_prior_sigma])))
+    blocks.append((np.array([[1.0, 0.0]]) / eq.R_prior_sigma, np.array([eq.R_prior / eq.R_prior_sigma])))
     ks = kappa_sigma * eq.R_ref
     blocks.append((np.array([[0.0, 1.0]]) / ks, np.array([kappa * eq.R_ref / ks])))
     theta, cov = solve_wls(blocks, 2)

@@ -71,8 +71,7 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
                             for k, v in summary["not_identifiable"].items())
                   + "".join(f"Polarity: {line}\n" for line in summary.get("polarity", {}).get("mirrored", []))
                   + "".join(f"Left out: {line}\n" for line in summary.get("polarity", {}).get("left_out", []))
-                  + "".join(f"Coil resistance: {line}\n"
-                            for line in [summary.get("polarity", {}).get("header_resistance")] if line)
+                  + "".join(f"Coil resistance: {line}\n" for line in _resistance_lines(summary.get("polarity", {})))
                   + f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
                   f"Identified material: {summary['material']}"),
          "table": summary_table(summary)},
@@ -155,3 +154,10 @@ def held_out_table(ident_summary) -> dict:
              r["rms_in_pct"], r["rms_held_out_pct"], r["max_held_out_pct"]] for r in ident_summary.get("held_out", [])]
     return {"columns": ["kind", "group", "x [mm]", "i [A]", "RMS in fit [%]", "RMS held out [%]", "max held out [%]"],
             "rows": rows}
+
+
+def _resistance_lines(polarity: dict) -> list[str]:
+    """The summary's lines on header resistances shifted, filled in from the data, or missing."""
+    shifted = polarity.get("header_resistance")
+    return ([shifted] if shifted else []) + list(polarity.get("header_resistance_filled", [])) + \
+        [f"{line}: simulated with the model's resistance" for line in polarity.get("header_resistance_missing", [])]
