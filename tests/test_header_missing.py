@@ -6,7 +6,8 @@ pseudo-inverse, then a kappa prior of width 0), and once that was mended it left
 start energized or do not come back to their start (no R for eq. 4) though the campaign's tracks pinned them.
 Now a recording without a header R gets a loose prior of its own (its mean U/i, +-10 %), and where its data cannot
 pin R, the campaign's (same coil); the pipeline's step 1 writes R at the start from the data into the header where
-it is as good as a measured one (:func:`solenoid_fmu.measure.headers.headers_from_data`) and names the rest.
+it is as good as a measured one (:func:`solenoid_fmu.measure.headers.headers_from_data`; a force stroke, whose
+armature moves, from its flux coming back to zero with the current) and names the rest.
 """
 
 from __future__ import annotations
@@ -62,9 +63,11 @@ def test_missing_headers_are_filled_from_the_data_within_their_sigma(heated):
         assert sigma < 0.005 * got.coil_resistance_ohm
         # the rig's header is the truth's R at the start, written to 0.1 mohm
         assert abs(got.coil_resistance_ohm - rec.coil_resistance_ohm) < 3.0 * sigma + 1e-4, rec.label()
-    assert n_filled == len(fix.filled) >= 4
-    moving = [r for r in heated if r.kind == "force_stroke"]
-    assert moving and all(any(line.startswith(r.label()) for line in fix.unfilled) for r in moving)
+    assert n_filled == len(fix.filled) >= 6
+    # the force strokes (the armature moves: no track) from the flux's return with the campaign's heating rate
+    moving = [r for r in heated if r.kind == "force_stroke" and r.voltage_V is not None]
+    assert moving and all(any(line.startswith(r.label()) and "flux back at zero" in line for line in fix.filled)
+                          for r in moving)
     assert fix.shifted is None
     # with the headers as the rig wrote them, nothing is filled or shifted
     assert headers_from_data(heated) == (heated, None, [], [])

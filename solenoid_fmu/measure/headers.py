@@ -10,14 +10,20 @@ campaign's resistance tracks (:func:`~.resistance_campaign.campaign_resistance`)
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import NamedTuple
 
+import numpy as np
+
 from ..errors import RecordingError
+from .conditioning import condition
 from .format import Recording
 from .resistance import HEADER_SIGMA_REL, resistance_track
 from .resistance_campaign import campaign_resistance
+from .resistance_equations import cumtrapz
 
-__all__ = ["OFFSET_KINDS", "SHIFT_KEY", "FILL_KEY", "ESTIMATED_KEYS", "HeaderFix", "headers_from_data"]
+__all__ = ["OFFSET_KINDS", "SHIFT_KEY", "FILL_KEY", "ESTIMATED_KEYS", "REMANENCE_REL", "HeaderFix", "headers_from_data",
+           "start_R_from_rests"]
 
 #: The kinds the campaign's header offset and the missing headers are estimated from (those the identification
 #: fits the resistance tracks on: current-driven at a fixed stroke, with voltage).
@@ -29,6 +35,9 @@ SHIFT_KEY = "coil_resistance_shift_ohm"
 FILL_KEY = "coil_resistance_estimated_sigma_ohm"
 #: Header keys that mark ``coil_resistance_ohm`` as an estimate, not a measurement.
 ESTIMATED_KEYS = (SHIFT_KEY, FILL_KEY)
+#: Flux left at zero current after an excitation (remanence), allowed for as 1-sigma relative to the recording's
+#: flux at its peak (:func:`start_R_from_rests`; an air gap keeps a solenoid's remanence far below this).
+REMANENCE_REL = 0.05
 
 
 class HeaderFix(NamedTuple):
@@ -86,19 +95,51 @@ def _filled(rec: Recording, camp, filled: list, unfilled: list) -> Recording:
     """``rec`` with R at the start from its track (the campaign's, else its own) where that pins it as well as a
     header would; a line on ``filled`` or ``unfilled``."""
     tr = None if camp is None else camp.track_for(rec)
-    if tr is None and (rec.position_m is None or float(rec.position_m.max() - rec.position_m.min()) <= 1e-6):
-        try:
+    moves = rec.position_m is not None and float(rec.position_m.max() - rec.position_m.min()) > 1e-6
+    try:
+        if tr is not None:
+            R0, sigma, how = tr.R0_ohm, tr.R0_sigma_ohm, ", ".join(tr.constraints)
+        elif not moves:
             tr = resistance_track(rec)
-        except RecordingError as exc:
-            unfilled.append(f"{rec.label()}: no coil_resistance_ohm, and none from its data ({exc})")
-            return rec
-    if tr is None:
-        unfilled.append(f"{rec.label()}: no coil_resistance_ohm, and the armature moves (no track)")
+            R0, sigma, how = tr.R0_ohm, tr.R0_sigma_ohm, ", ".join(tr.constraints)
+        else:
+            kappa = (0.0, 0.0) if camp is None else (camp.kappa_per_J, camp.kappa_sigma_per_J)
+            R0, sigma = start_R_from_rests(rec, *kappa)
+            how = "the flux back at zero with the current, the campaign's heating rate"
+    except RecordingError as exc:
+        unfilled.append(f"{rec.label()}: no coil_resistance_ohm, and none from its data ({'; '.join(exc.problems)})")
         return rec
-    if not tr.R0_sigma_ohm < HEADER_SIGMA_REL * tr.R0_ohm:
+    if not sigma < HEADER_SIGMA_REL * R0:
         unfilled.append(f"{rec.label()}: no coil_resistance_ohm, and its data pin R at the start to "
-                        f"+-{100 * tr.R0_sigma_ohm / tr.R0_ohm:.2g} % only")
+                        f"+-{100 * sigma / R0:.2g} % only")
         return rec
-    filled.append(f"{rec.label()}: coil_resistance_ohm {tr.R0_ohm:.5g} +- {tr.R0_sigma_ohm:.2g} ohm from its data "
-                  f"({', '.join(tr.constraints)})")
-    return _with_header(rec, tr.R0_ohm, FILL_KEY, tr.R0_sigma_ohm)
+    filled.append(f"{rec.label()}: coil_resistance_ohm {R0:.5g} +- {sigma:.2g} ohm from its data ({how})")
+    return _with_header(rec, R0, FILL_KEY, sigma)
+
+
+def start_R_from_rests(rec: Recording, kappa_per_J: float = 0.0, kappa_sigma_per_J: float = 0.0) -> tuple[float, float]:
+    """R at the start [ohm] and its 1-sigma [ohm] of a recording whose current starts and ends at rest, from its flux
+    coming back: ``Psi(end) - Psi(0)`` is the remanence (a solenoid without a magnet has no flux at zero current,
+    wherever the armature is; allowed for as :data:`REMANENCE_REL` of the flux at the peak), eq. 4 with
+    ``R(t) = R0 (1 + kappa E(t))`` (``kappa_per_J``: the campaign's heating rate, E the Joule energy). The one
+    equation of :mod:`.resistance` that holds while the armature moves (a force stroke: neither plateaus nor
+    closure do). Raises RecordingError where the current does not start and end at rest."""
+    c = condition(rec)
+    if c.head is None or c.tail is None:
+        raise RecordingError(rec.label(), ["the current does not start and end at rest: the flux's return cannot "
+                                           "pin R"])
+    A = cumtrapz(c.uc, c.t)
+    B0 = cumtrapz(c.ic, c.t)
+    R0 = float(A[-1] / B0[-1])
+    E = cumtrapz(R0 * c.ic ** 2, c.t)
+    for _ in range(3):  # the Joule energy with the track of the last estimate
+        B1 = cumtrapz(E * c.ic, c.t)
+        R0 = float(A[-1] / (B0[-1] + kappa_per_J * B1[-1]))
+        E = cumtrapz(R0 * (1.0 + kappa_per_J * E) * c.ic ** 2, c.t)
+    se = c.offset_se_V * float(c.t[-1] - c.t[0])
+    if not (math.isfinite(R0) and R0 > 0.0 and math.isfinite(se)):
+        raise RecordingError(rec.label(), [f"the flux's return gives no R (R0 {R0!r} ohm, voltage offset's standard "
+                                           f"error {c.offset_se_V!r} V)"])
+    psi_peak = float(np.max(A - R0 * (B0 + kappa_per_J * B1)))
+    sigma_psi = math.sqrt((REMANENCE_REL * psi_peak) ** 2 + se ** 2 + (kappa_sigma_per_J * R0 * B1[-1]) ** 2)
+    return R0, sigma_psi / float(B0[-1] + kappa_per_J * B1[-1])
