@@ -130,3 +130,10 @@ def test_the_pipeline_fills_and_names_missing_header_resistances(tmp_path, monke
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["polarity"] == pol
     page = (tmp_path / "out" / "report.html").read_text()
     assert f"Coil resistance: {pol['header_resistance_filled'][0].split(':')[0]}" in page
+    # the lot's coil feature from the filled headers (no coil_temperature_C either: taken at 20 degC), against the
+    # median of the rig's own headers (R at the start of each run, before any temperature correction)
+    from solenoid_fmu.lot.features import unit_features
+
+    R20 = unit_features(paths, tmp_path / "out")["R20_ohm"]
+    want = float(np.median([r.coil_resistance_ohm for r in orig.values() if r.coil_resistance_ohm is not None]))
+    assert abs(R20 / want - 1.0) < 0.003, (R20, want)

@@ -6,7 +6,9 @@ the coil and the mechanics show themselves in, each measured or identified per u
 
 * ``B_T_at_<H>``: the identified B(H) [T] at H = 1, 3, 10 kA/m (``material/material.csv``'s table, interpolated);
 * ``R20_ohm``: the coil resistance at 20 degC [ohm]: the recordings' header ``coil_resistance_ohm``, corrected
-  from the header's ``coil_temperature_C`` with copper's coefficient, median over the recordings;
+  from the header's ``coil_temperature_C`` with copper's coefficient, median over the recordings; where headers
+  have none, R at the start as the recordings' own data pin it (:func:`~solenoid_fmu.measure.headers_from_data`),
+  taken at 20 degC without a ``coil_temperature_C``;
 * ``psi_Wb_rated_<x>``, ``F_N_rated_<x>``: flux linkage [Wb] and force [N] of the identified maps at the rated
   current (the geometry's ``max_current_A``) at strokes 0.6 and 2.5 mm;
 * ``friction_N``: half the force gap [N] between the closing and the opening pass of the ``force_stroke``
@@ -22,7 +24,7 @@ import numpy as np
 
 from ..field import load_geometry, read_bh_csv
 from ..maps import force_at, load_maps, psi_at
-from ..measure import read_unipolar
+from ..measure import headers_from_data, read_unipolar
 from ..realtime import COPPER_ALPHA_PER_K
 
 __all__ = ["FEATURES", "FEATURE_H_A_PER_M", "FEATURE_STROKES_M", "friction_estimate_N", "unit_features"]
@@ -114,6 +116,8 @@ def unit_features(recording_paths, out_dir, geometry=None) -> dict:
     """
     out = Path(out_dir)
     recs = read_unipolar(recording_paths)[0]  # a rig's negative current mirrored, bipolar ones left out
+    if any(r.voltage_V is not None and r.coil_resistance_ohm is None for r in recs):  # optional in recordings.md
+        recs = headers_from_data(recs).recordings
     H_tab, B_tab = read_bh_csv(out / "material" / "material.csv")  # the table as written, interpolated
     geom = geometry if hasattr(geometry, "coil") else load_geometry(geometry)
     maps = load_maps(out / "maps")
