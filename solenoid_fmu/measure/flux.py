@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from .branches import FluxBranch, peak_curves, split_branches
-from .conditioning import condition
+from .conditioning import armature_moves, condition
 from .format import Recording
 from .polarity import polarity_problem
 from .resistance import ResistanceTrack, resistance_track
@@ -306,7 +306,7 @@ def _constant_resistance(rec: Recording, c, R_ohm: float | None, notes: list, *,
 def _context_notes(rec: Recording, i_s: np.ndarray, thr: float) -> list[str]:
     """Notes on what the flux of this recording is not: a moving armature, a start under current."""
     notes = []
-    if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
+    if armature_moves(rec.position_m):
         notes.append(f"the armature moves by {float(np.ptp(rec.position_m)) * 1e3:.4g} mm during the recording: Psi "
                      "changes with the position too, so the branches and the 'hysteresis width' include motion "
                      "and are not a property of the steel")
@@ -452,7 +452,7 @@ def _common_stroke(recordings: list[Recording]) -> list[float]:
             problems.append(f"{rec.label()}: kind {rec.kind!r}, commutation curves need 'flux' recordings")
             continue
         x = rec.positions_m()
-        if float(np.ptp(x)) > 1e-6:
+        if armature_moves(x):
             problems.append(f"{rec.label()}: the stroke moves by {np.ptp(x) * 1e3:.4f} mm "
                             "during the recording")
         positions.append(float(np.median(x)))

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import RecordingError
-from .conditioning import condition
+from .conditioning import armature_moves, condition
 from .format import Recording
 from .resistance import HEADER_SIGMA_REL, resistance_track
 from .resistance_campaign import campaign_resistance
@@ -95,7 +95,7 @@ def _filled(rec: Recording, camp, filled: list, unfilled: list) -> Recording:
     """``rec`` with R at the start from its track (the campaign's, else its own) where that pins it as well as a
     header would; a line on ``filled`` or ``unfilled``."""
     tr = None if camp is None else camp.track_for(rec)
-    moves = rec.position_m is not None and float(rec.position_m.max() - rec.position_m.min()) > 1e-6
+    moves = armature_moves(rec.position_m)
     try:
         if tr is not None:
             R0, sigma, how = tr.R0_ohm, tr.R0_sigma_ohm, ", ".join(tr.constraints)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import RecordingError
+from .conditioning import armature_moves
 from .format import Recording
 from .resistance import (
     CLOSURE_FACTOR,
@@ -245,7 +246,7 @@ def _own_fits(recordings: list[Recording], keys: list[str], header_sigma_rel: fl
         if rec.voltage_V is None:
             skipped[key] = "no voltage column"
             continue
-        if rec.position_m is not None and float(np.ptp(rec.position_m)) > 1e-6:
+        if armature_moves(rec.position_m):
             skipped[key] = "the armature moves: Psi changes at constant current"
             continue
         R_prior, rel = None, header_sigma_rel
