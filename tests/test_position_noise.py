@@ -56,3 +56,39 @@ def test_the_resistance_tracks_of_noisy_fixed_strokes_are_those_of_the_header_st
     for a, b in zip(plain.tracks.values(), noisy.tracks.values(), strict=True):
         assert abs(a.R0_ohm - b.R0_ohm) <= 1e-9 * a.R0_ohm and abs(a.kappa_per_J - b.kappa_per_J) <= 1e-9 * abs(
             a.kappa_per_J) + 1e-15
+
+
+def test_friction_is_fitted_on_moving_strokes_only_not_on_noisy_fixed_ones():
+    """A fixed stroke's noisy column is no motion: before stop 53 it joined the friction fit (``np.ptp > 0``)."""
+    from types import SimpleNamespace
+
+    from solenoid_fmu.loop.effects import PRESLIDING_M, fit_friction
+
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 1.0, 4000)
+    x_run = 1.5e-3 + 1.0e-3 * np.sin(2 * np.pi * t)  # a force stroke there and back
+    sign = np.sign(np.gradient(x_run))
+    Fc, p = 0.8, PRESLIDING_M[1]
+    moving = SimpleNamespace(name="run", position_m=x_run,
+                             residuals={"force_N": Fc * sign + rng.normal(0.0, 0.05, t.size)})
+    fixed = [SimpleNamespace(name=f"fixed-{k}", position_m=np.round((x0 + rng.normal(0.0, 2e-6, t.size)) * 1e6) * 1e-6,
+                             residuals={"force_N": 0.3 * np.sin(2 * np.pi * 3 * t) + rng.normal(0.0, 0.05, t.size)})
+             for k, x0 in enumerate((0.5e-3, 1.0e-3, 2.0e-3))]
+    params, info = fit_friction(None, {}, [moving, *fixed])
+    assert info["fitted_on"] == ["run"]
+    assert abs(params["force_N"] - Fc) < 0.05 * Fc and params["presliding_m"] <= 2 * p
+
+
+def test_the_force_timing_reads_noisy_fixed_strokes_as_at_rest(recs):
+    """The force channel's lead is measured on recordings at rest: a noisy column must not take them out."""
+    from solenoid_fmu.loop.force_timing import measure_force_timing
+    from solenoid_fmu.loop.residuals import FluxCache
+
+    tables = load_tables(truth_dir("X6Cr17"))
+    rng = np.random.default_rng(3)
+    with_force = [r for r in recs if r.force_N is not None]
+    assert with_force
+    plain = measure_force_timing(tables, with_force, FluxCache())
+    noisy = measure_force_timing(tables, [noisy_position(r, 2e-6, rng) for r in with_force], FluxCache())
+    assert len(plain.recordings) == len(noisy.recordings) == len(with_force)
+    assert abs(plain.lead_samples - noisy.lead_samples) <= max(0.2 * plain.se_samples, 0.01)

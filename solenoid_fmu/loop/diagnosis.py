@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..measure import armature_moves
 from .residuals import ResidualCase
 from .signals import detrend, lowpass
 from .split import cv_folds
@@ -157,7 +158,8 @@ def _features(effect: str, case: ResidualCase, signal: str, scales: dict) -> np.
     if effect == "friction":
         if signal != "force_N":
             return None
-        if np.ptp(case.position_m) < 0.01 * scales["x_span"]:  # the armature stands: no sliding friction
+        # the armature stands (or its position sensor only shows noise): no sliding friction
+        if np.ptp(case.position_m) < 0.01 * scales["x_span"] or not armature_moves(case.position_m):
             return None
         v = _ddt(case.position_m, t)
         vs = np.nanmax(np.abs(v)) if n else 0.0

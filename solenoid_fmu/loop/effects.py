@@ -44,7 +44,7 @@ import math
 import numpy as np
 
 from ..fmu import start_excess_K
-from ..measure import flux_linkage
+from ..measure import armature_moves, flux_linkage
 from ..realtime import HysteresisError, MapTables, PlayHysteresis, fit_play_to_series
 from .heating_fit import heating_corrected
 from .residuals import recording_name
@@ -278,8 +278,9 @@ def _dahl(x: np.ndarray, presliding_m: float) -> np.ndarray:
 
 
 def fit_friction(tables, effects, cases) -> tuple[dict, dict]:
-    """Friction force and presliding length from the force residual where the armature moves."""
-    moving = [c for c in cases if "force_N" in c.residuals and np.ptp(c.position_m) > 0]
+    """Friction force and presliding length from the force residual where the armature moves (beyond its position
+    sensor's noise: :func:`~solenoid_fmu.measure.armature_moves`; a fixed stroke's noisy column is no motion)."""
+    moving = [c for c in cases if "force_N" in c.residuals and armature_moves(c.position_m)]
     if not moving:
         raise ImproveError("friction: no recording with force and a moving armature")
     best = None

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolenoidError
+from ..measure import armature_moves
 from .tables import tables_from_fmu
 
 #: The lead is applied when it is at least this many standard errors from zero ...
@@ -44,7 +45,8 @@ SIGNIFICANCE = 4.0
 MIN_LEAD_SAMPLES = 0.05
 #: Leads searched [sample periods]; beyond them a misfit is not a channel timing.
 LEAD_RANGE = (-3.0, 3.0)
-#: The armature counts as at rest when its position varies by less than this [m].
+#: The armature counts as at rest when its position varies by less than this [m] or by no more than its sensor's
+#: noise (:func:`~solenoid_fmu.measure.armature_moves`).
 AT_REST_M = 10e-6
 
 
@@ -115,7 +117,7 @@ def _series(tables, rec, flux_of):
     if rec.force_N is None or rec.voltage_V is None or rec.kind == "force_stroke":
         return None
     x = np.asarray(rec.positions_m(), dtype=float)
-    if x.size < 8 or float(np.ptp(x)) > AT_REST_M:
+    if x.size < 8 or (float(np.ptp(x)) > AT_REST_M and armature_moves(x)):
         return None
     try:
         fr = flux_of(rec)

@@ -1,7 +1,7 @@
 """measure: see the README's package map."""
 
 from .branches import FluxBranch, peak_curves
-from .conditioning import hold_segments
+from .conditioning import armature_moves, hold_segments
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
 from .format import KINDS, Recording, make_recording
 from .headers import ESTIMATED_KEYS, HeaderFix, headers_from_data
@@ -22,6 +22,7 @@ __all__ = [
     "HeaderFix",
     "Recording",
     "ResistanceTrack",
+    "armature_moves",
     "campaign_resistance",
     "closure_problems",
     "commutation_curve",
