@@ -52,7 +52,10 @@ def test_workers_give_the_numbers_of_one_process():
     finally:
         three.close()
     assert all(p.wait(timeout=10) == 0 for p in procs)
-    np.testing.assert_allclose(three.values(theta + 0.01), one.values(theta + 0.01), rtol=1e-7)
+    # in this process the closed model solves from zero, ``one`` from its last solutions: both stop somewhere below
+    # Newton's target (NEWTON_RTOL_IDENTIFY, 1e-5), where the values lie within ~5e-7 of the converged ones (2.1e-7
+    # apart measured here at stop 53): they agree to that, not to the arithmetic's last digits
+    np.testing.assert_allclose(three.values(theta + 0.01), one.values(theta + 0.01), rtol=2e-6)
 
 
 def test_a_worker_error_is_raised_in_the_parent():

@@ -163,6 +163,9 @@ class Solver:
         #: Relative residual target of Newton; None: NEWTON_RTOL (callers that need less, e.g. the
         #: identification, raise it).
         self.rtol: float | None = None
+        #: Whether a solve with forces also evaluates the Maxwell-stress force (NaN when not; callers that use
+        #: only the co-energy force, e.g. the identification, turn it off: half of the forces' cost).
+        self.stress_force = True
 
     # -- sparsity pattern and scatter --------------------------------------------------------
     def _pattern(self, linear_backend: str | None):
@@ -335,8 +338,9 @@ class Solver:
         F_co = F_st = float("nan")
         if forces:
             F_co = self._force_virtual_work(cfg, u, dens, self.mesh.dr_dx, self.mesh.dz_dx)
-            F_st = (self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices), eggshell_weight(self, cfg))
-                    if self.moving_elements.any() else 0.0)
+            if self.stress_force:
+                F_st = (self._force_virtual_work(cfg, u, dens, np.zeros(self.mesh.n_vertices),
+                                                 eggshell_weight(self, cfg)) if self.moving_elements.any() else 0.0)
         return Solution(i_A, x_m, u, psi, F_co, F_st, w_co, it, history, residual_floor=floor, note=note)
 
     def _newton(self, cfg: GapConfig, u: np.ndarray, f: np.ndarray, fnorm: float, i_A: float, x_m: float):

@@ -10,7 +10,14 @@ from scipy.sparse.linalg import splu
 
 from ..errors import SolverError
 
-__all__ = ["SPDSolver", "LINEAR_SOLVER", "BACKENDS"]
+__all__ = ["SPDSolver", "LINEAR_SOLVER", "BACKENDS", "PARDISO_REFINEMENT_STEPS"]
+
+#: Iterative refinement steps of PARDISO's solve (iparm(8); its default 2). The Cholesky factor of these SPD
+#: systems solves them to a relative residual of 2.5e-12 without refinement, the same as with it (PS45, 1.5 A,
+#: 1.5 mm), and each step costs a matrix product and another pair of triangular solves: a solve took 10 ms with
+#: the default, 4.4 ms without (17k unknowns). Newton's residual is computed anew at every iterate and the
+#: adjoint's accuracy needs only that of the Gauss-Newton Jacobian, so nothing rests on the refinement.
+PARDISO_REFINEMENT_STEPS = 0
 
 
 class SPDSolver:
@@ -64,7 +71,8 @@ class SPDSolver:
         A.has_sorted_indices = True
         if not self._analysed:
             self._ps.set_phase(11)
-            self._ps._call_pardiso(A, b)
+            self._ps._call_pardiso(A, b)  # with iparm(1) = 0 PARDISO writes its defaults into iparm here
+            self._ps.set_iparm(8, PARDISO_REFINEMENT_STEPS)
             self._analysed = True
         self._ps.set_phase(22)
         self._ps._call_pardiso(A, b)
