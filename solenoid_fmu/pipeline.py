@@ -35,7 +35,8 @@ recorded with a negative current, taken mirrored, and the bipolar ones left out 
 ``header_resistance``: where every header resistance misses the data by one offset, that the headers were
 shifted by it (:func:`solenoid_fmu.measure.headers.headers_from_data`), else null, and ``header_resistance_filled`` /
 ``header_resistance_missing``: the recordings without a header resistance that got one from their own data, and
-those whose data do not pin it.
+those whose data do not pin it; ``names_not_read``: header keys and columns kept but not read for looking like
+misspelt ones of ``recordings.md`` (``coil_resistance_Ohm``: the recording is taken as one without a header R).
 
 Outputs are written to fresh files (atomic writes); a failing step stops the pipeline with its
 error and leaves the results of the steps before it in place. Only one pipeline writes a folder at a time
@@ -73,7 +74,7 @@ from .maps import (
     save_maps,
     with_fitted_eddy,
 )
-from .measure import headers_from_data, read_recording, unipolar, write_recording
+from .measure import headers_from_data, misspelt_in, read_recording, unipolar, write_recording
 from .report import write_campaign_report
 
 #: Grid presets of the FEM steps: "full" is the shipped quality, "quick" a coarse check (tests), "smoke" the
@@ -268,7 +269,7 @@ class _Run:
         self.times: dict = {}
         # recordings taken mirrored or left out, headers shifted (step 1)
         self.polarity: dict = {"mirrored": [], "left_out": [], "header_resistance": None,
-                               "header_resistance_filled": [], "header_resistance_missing": []}
+                               "header_resistance_filled": [], "header_resistance_missing": [], "names_not_read": []}
         self.t_all = time.perf_counter()
 
     def step(self, label: str) -> float:
@@ -289,13 +290,15 @@ def _read_campaign(run: _Run):
     recs, turned, left = unipolar([read_recording(p) for p in paths])
     recs, shifted, filled, missing = headers_from_data(recs)
     run.polarity = {"mirrored": turned, "left_out": left, "header_resistance": shifted,
-                    "header_resistance_filled": filled, "header_resistance_missing": missing}
+                    "header_resistance_filled": filled, "header_resistance_missing": missing,
+                    "names_not_read": misspelt_in(recs)}
     kinds: dict = {}
     for r in recs:
         kinds[r.kind] = kinds.get(r.kind, 0) + 1
     run.say("   " + ", ".join(f"{n} {k}" for k, n in kinds.items())
             + (f"; skipped {len(skipped)} other CSV" if skipped else ""))
-    for line in turned + [f"left out {w}" for w in left] + [shifted] * bool(shifted) + filled + missing:
+    for line in (turned + [f"left out {w}" for w in left] + [shifted] * bool(shifted) + filled + missing
+                 + run.polarity["names_not_read"]):
         run.say(f"   {line}")
     if "flux" not in kinds:
         raise PipelineError(f"{run.folder}: no 'flux' recording: the B(H) identification needs one"

@@ -10,7 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import RecordingError
-from ..measure import commutation_curve, read_unipolar
+from ..measure import commutation_curve, misspelt_in, read_unipolar
 from .campaign_data import HOLD_KINDS, corrected_curve, flux_points, force_points, hold_points
 from .fit import DEFAULT_MESH_SIZE, DEFAULT_N_CURRENTS, choose_currents, identify_bh
 from .flux_model import as_curve, as_geometry
@@ -104,8 +104,9 @@ def identify_from_recordings(recordings, *, geometry=None, start_material=None, 
 def _flux_recordings(recordings) -> tuple[list, list, list[str], list[str]]:
     """(every recording, those with a rig's negative current mirrored; the flux recordings to identify from; why
     each other one was left out: bipolar, :func:`~solenoid_fmu.measure.unipolar`, or not absolute,
-    :func:`~.measured.absolute_flux`; what was mirrored), both lists also printed. Raises RecordingError where no flux
-    recording is left."""
+    :func:`~.measured.absolute_flux`; what was mirrored and the header keys and columns not read for looking like
+    misspelt ones, :func:`~solenoid_fmu.measure.misspelt_in`), both lists also printed. Raises RecordingError where
+    no flux recording is left."""
     recs, turned, bipolar = read_unipolar(recordings)
     flux = [r for r in recs if r.kind == "flux"]
     if not flux:
@@ -116,6 +117,7 @@ def _flux_recordings(recordings) -> tuple[list, list, list[str], list[str]]:
     unusable = bipolar + unusable
     if not flux:
         raise RecordingError("identify", unusable)
+    turned = turned + misspelt_in(recs)  # a misspelt header resistance or stroke is read as missing: say so
     for line in turned:
         print(f"identify: {line}", file=sys.stderr)
     for why in unusable:

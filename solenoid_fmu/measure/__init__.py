@@ -3,7 +3,7 @@
 from .branches import FluxBranch, peak_curves
 from .conditioning import armature_moves, hold_segments
 from .flux import CommutationCurve, FluxResult, commutation_curve, flux_linkage
-from .format import KINDS, Recording, make_recording
+from .format import KINDS, Recording, make_recording, misspelt_in
 from .headers import ESTIMATED_KEYS, HeaderFix, headers_from_data
 from .polarity import read_unipolar, unipolar
 from .reader import read_recording, validate_recording
@@ -30,6 +30,7 @@ __all__ = [
     "headers_from_data",
     "hold_segments",
     "make_recording",
+    "misspelt_in",
     "peak_curves",
     "read_recording",
     "read_unipolar",

@@ -14,6 +14,7 @@ reader (:mod:`solenoid_fmu.measure.reader`) and raises
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from dataclasses import dataclass
@@ -31,6 +32,12 @@ __all__ = [
     "REQUIRED_COLUMNS",
     "KNOWN_COLUMNS",
     "REQUIRED_HEADER",
+    "KNOWN_HEADER",
+    "SHIFT_KEY",
+    "FILL_KEY",
+    "near_miss",
+    "misspelt_names",
+    "misspelt_in",
     "KEY_RE",
     "NUM_RE",
     "Recording",
@@ -60,6 +67,49 @@ REQUIRED_COLUMNS = {
 }
 KNOWN_COLUMNS = ("time_s", "voltage_V", "current_A", "position_mm", "force_N")
 REQUIRED_HEADER = ("recording", "kind", "solenoid")
+#: Every header key of ``recordings.md``; other keys are kept and not read (a rig may add its own).
+KNOWN_HEADER = REQUIRED_HEADER + ("position_mm", "coil_resistance_ohm", "coil_temperature_C", "sample_rate_Hz",
+                                  "notes")
+#: The header key this project writes where ``coil_resistance_ohm`` was shifted (:mod:`.headers`): the offset [ohm].
+SHIFT_KEY = "coil_resistance_shift_ohm"
+#: The header key this project writes where ``coil_resistance_ohm`` was missing and taken from the recording's own
+#: data: the estimate's 1-sigma [ohm].
+FILL_KEY = "coil_resistance_estimated_sigma_ohm"
+#: How alike (difflib's ratio, case ignored) an unknown header key or column name must be to a known one to be taken
+#: for its misspelling: 'coil_resistance_Ohm', 'coil_resistence_ohm', 'position_MM', 'forceN' are; 'operator',
+#: 'coil_resistance_estimated_sigma_ohm' (the pipeline's own key, 0.70) and 'temperature_C' (0.76) are not.
+NEAR_MISS_RATIO = 0.85
+
+
+def near_miss(name: str, known) -> str | None:
+    """The known name that ``name`` (not itself known) looks like a misspelling of, or None."""
+    if name in known:
+        return None
+    folded = {k.lower(): k for k in known}
+    if name.lower() in folded:
+        return folded[name.lower()]
+    hit = difflib.get_close_matches(name.lower(), list(folded), n=1, cutoff=NEAR_MISS_RATIO)
+    return folded[hit[0]] if hit else None
+
+
+def misspelt_names(header_keys, columns=()) -> list[str]:
+    """Why each unknown header key or column name that looks like a misspelt known one is not read, e.g.
+    "header 'coil_resistance_Ohm' is not read (recordings.md has 'coil_resistance_ohm')". Such a name is kept and
+    ignored as any other unknown one (the file stays readable as the rig wrote it); a caller says so where the known
+    name's absence matters (a missing header resistance, a missing stroke)."""
+    out = []
+    for what, names, known in (("header", header_keys, KNOWN_HEADER), ("column", columns, KNOWN_COLUMNS)):
+        for name in names:
+            hit = None if name in (SHIFT_KEY, FILL_KEY) else near_miss(name, known)
+            if hit is not None:
+                out.append(f"{what} {name!r} is not read (recordings.md has {hit!r})")
+    return out
+
+
+def misspelt_in(recordings) -> list[str]:
+    """:func:`misspelt_names` of each recording, as "FILE: header 'X' is not read (...)"."""
+    return [f"{Path(r.path).name if r.path is not None else r.kind}: {line}" for r in recordings
+            for line in misspelt_names(r.header, r.extra)]
 
 
 KEY_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from .conditioning import armature_moves, condition
-from .format import Recording
+from .format import FILL_KEY, SHIFT_KEY, Recording
 from .resistance import HEADER_SIGMA_REL, resistance_track
 from .resistance_campaign import campaign_resistance
 from .resistance_equations import cumtrapz
@@ -28,11 +28,6 @@ __all__ = ["OFFSET_KINDS", "SHIFT_KEY", "FILL_KEY", "ESTIMATED_KEYS", "REMANENCE
 #: The kinds the campaign's header offset and the missing headers are estimated from (those the identification
 #: fits the resistance tracks on: current-driven at a fixed stroke, with voltage).
 OFFSET_KINDS = ("flux", "ramp", "eddy")
-#: The header key written where ``coil_resistance_ohm`` was shifted: the offset [ohm].
-SHIFT_KEY = "coil_resistance_shift_ohm"
-#: The header key written where ``coil_resistance_ohm`` was missing and taken from the recording's own data:
-#: the estimate's 1-sigma [ohm].
-FILL_KEY = "coil_resistance_estimated_sigma_ohm"
 #: Header keys that mark ``coil_resistance_ohm`` as an estimate, not a measurement.
 ESTIMATED_KEYS = (SHIFT_KEY, FILL_KEY)
 #: Flux left at zero current after an excitation (remanence), allowed for as 1-sigma relative to the recording's

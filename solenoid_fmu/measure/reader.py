@@ -29,6 +29,7 @@ from .format import (
     Recording,
     header_value_problems,
     mm_column_to_m,
+    near_miss,
 )
 
 __all__ = ["MAX_LISTED_PROBLEMS", "MAX_GAP_PERIODS", "MAX_RECORDING_BYTES", "MIN_TIME_STEP_S", "read_recording",
@@ -307,7 +308,7 @@ def _read_columns(col_line: str, col_lineno: int, first_chunk: list[str], first_
         elif "time_s" not in seen or "current_A" not in seen:
             missing = [c for c in ("time_s", "current_A") if c not in seen]
             probs.add(col_lineno, f"missing column(s) {', '.join(missing)} "
-                                  "(every recording has time_s and current_A)")
+                                  "(every recording has time_s and current_A)" + _found_instead(missing, seen))
     return names, delimiter_ok
 
 
@@ -360,7 +361,7 @@ def _check_header(header: dict[str, str], header_line: dict[str, int], probs: _P
     for key in REQUIRED_HEADER:
         if key not in header:
             hint = " (format version, '# recording: 1')" if key == "recording" else ""
-            probs.add(1, f"missing header key {key!r}{hint}")
+            probs.add(1, f"missing header key {key!r}{hint}" + _found_instead([key], header))
     for key, message in header_value_problems(header):
         probs.add(header_line.get(key, 1), message)
     kind = header.get("kind", "").strip()
@@ -370,10 +371,18 @@ def _check_header(header: dict[str, str], header_line: dict[str, int], probs: _P
     missing = [c for c in missing if c not in ("time_s", "current_A")]  # reported with the column line
     if missing:
         probs.add(col_lineno, f"kind {kind!r} needs column(s) {', '.join(missing)} "
-                              f"(found: {', '.join(sorted(columns))})")
+                              f"(found: {', '.join(sorted(columns))})" + _found_instead(missing, columns))
     if kind in FIXED_STROKE_KINDS and "position_mm" not in header and "position_mm" not in columns:
         probs.add(col_lineno, f"kind {kind!r} is a fixed-stroke test: the stroke is missing "
-                              "(give header '# position_mm: ...' or a position_mm column)")
+                              "(give header '# position_mm: ...' or a position_mm column)"
+                  + _found_instead(["position_mm"], [*header, *columns]))
+
+
+def _found_instead(missing, present) -> str:
+    """"; 'X' found: a misspelling?" for the names in ``present`` that look like a misspelt one of ``missing``
+    (:func:`~.format.near_miss`), else ""."""
+    hits = [p for p in present if near_miss(p, missing) is not None]
+    return f"; {', '.join(repr(h) for h in hits)} found: a misspelling?" if hits else ""
 
 
 def _parse_data(data: list[str], first_line: int, names: list[str],

@@ -72,6 +72,7 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
                   + "".join(f"Polarity: {line}\n" for line in summary.get("polarity", {}).get("mirrored", []))
                   + "".join(f"Left out: {line}\n" for line in summary.get("polarity", {}).get("left_out", []))
                   + "".join(f"Coil resistance: {line}\n" for line in _resistance_lines(summary.get("polarity", {})))
+                  + "".join(f"Not read: {line}\n" for line in summary.get("polarity", {}).get("names_not_read", []))
                   + f"FMU: {summary['fmu']}\nImproved FMU: {summary['improved_fmu']}\n"
                   f"Identified material: {summary['material']}"),
          "table": summary_table(summary)},
