@@ -13,6 +13,7 @@ armature moves, from its flux coming back to zero with the current) and names th
 from __future__ import annotations
 
 import dataclasses
+import html
 import json
 
 import numpy as np
@@ -113,8 +114,13 @@ def test_the_pipeline_fills_and_names_missing_header_resistances(tmp_path, monke
     folder = lotdata.draw(tmp_path / "campaigns", units=[lotdata.plan()[0]])[0]
     paths = sorted((folder / "recordings").glob("*.csv"))
     orig = {p: read_recording(p) for p in paths}
+    typo = next(p for p in paths if orig[p].coil_resistance_ohm is not None)  # its header R under a misspelt key
     for p in paths:
-        write_recording(p, stripped(orig[p]))
+        rec = stripped(orig[p])
+        if p == typo:
+            rec = dataclasses.replace(rec, header={**rec.header, "coil_resistance_Ohm": orig[p].header[
+                "coil_resistance_ohm"]})
+        write_recording(p, rec)
     monkeypatch.setitem(PRESETS, "smoke", dict(PRESETS["smoke"], identify_max_nfev=1))
     summary = run_pipeline(folder, tmp_path / "out", preset="smoke", workers=1, progress=None,
                            start_material=lotdata.NOMINAL_STEEL_CSV)
@@ -130,6 +136,10 @@ def test_the_pipeline_fills_and_names_missing_header_resistances(tmp_path, monke
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["polarity"] == pol
     page = (tmp_path / "out" / "report.html").read_text()
     assert f"Coil resistance: {pol['header_resistance_filled'][0].split(':')[0]}" in page
+    # the misspelt key is named (and not read: that recording is filled or missing like the others, above)
+    assert pol["names_not_read"] == [f"{typo.name}: header 'coil_resistance_Ohm' is not read (recordings.md has "
+                                     "'coil_resistance_ohm')"]
+    assert "Not read: " + html.escape(pol["names_not_read"][0]) in page
     # the lot's coil feature from the filled headers (no coil_temperature_C either: taken at 20 degC), against the
     # median of the rig's own headers (R at the start of each run, before any temperature correction)
     from solenoid_fmu.lot.features import unit_features
