@@ -47,6 +47,7 @@ __all__ = [
     "generate_sources",
     "maps_header",
     "model_header",
+    "param_types",
 ]
 
 #: The model source (package data) copied into the FMU's ``sources/``.
@@ -177,7 +178,7 @@ def _c_enum(prefix: str, names, last: str | None = None, first: int = 0) -> str:
     return "enum {\n" + "\n".join(lines) + "\n};\n"
 
 
-def _param_types() -> dict:
+def param_types() -> dict:
     """FMI type of every model parameter (``DEFAULT_PARAMS``), from the interface table."""
     types = {v.name: v.type for v in VARIABLES + EFFECT_VARIABLES if v.causality == "parameter"}
     missing = [name for name in M.DEFAULT_PARAMS if name not in types]
@@ -258,7 +259,7 @@ def check_implemented(source: str | None = None) -> None:
             f"model states {', '.join(STATE_NAMES)}; parameters {', '.join(M.DEFAULT_PARAMS)}). Port the new "
             "effects to solenoid_fmu/fmu/c/solenoid_fmu.c (struct Core, sol_step, the IMPLEMENTS_* lines), or "
             "export with --backend python")
-    _param_types()
+    param_types()
 
 
 def default_params(tables: MapTables) -> dict:
@@ -271,7 +272,7 @@ def default_params(tables: MapTables) -> dict:
 
 def _param_defaults(tables: MapTables, params: dict) -> str:
     """``SOL_<NAME>_DEFAULT`` of every model parameter: a double, or a macro for Integer and Boolean."""
-    types = _param_types()
+    types = param_types()
     fx = {v.name for v in EFFECT_VARIABLES}
     for where, names in ((tables.where, [n for n in M.DEFAULT_PARAMS if n not in fx]),
                          (f"{tables.where}: maps.json effects", [n for n in M.DEFAULT_PARAMS if n in fx])):
