@@ -1,9 +1,10 @@
 """The two implementations of the real-time step give the same numbers, bit for bit (issue 24, item 2).
 
 The step is written twice: in Python (:mod:`solenoid_fmu.realtime.model`, which the pythonfmu FMU runs,
-numpy only, readable, and the fast path of the fits) and in C (``solenoid_fmu/fmu/c/sol_*.c``, the
-native FMU: real time without Python, no allocation in the step). Both stay: generating the C from the
-Python, or running the C from Python, would cost the readable reference or the numpy-only FMU. So this
+numpy only, readable, the reference) and in C (``solenoid_fmu/fmu/c/sol_*.c``, the native FMU: real time
+without Python, no allocation in the step; also the fits' simulations where a compiler is there,
+:mod:`solenoid_fmu.fmu.native_sim`). Both stay: generating the C from the Python would cost the readable
+reference or the numpy-only FMU. So this
 differential test makes any difference fail: Hypothesis draws random maps (grid sizes, monotone but
 otherwise random ``i_f``, random force, random effect data), parameters (R, G_eddy, h_sub_max, Psi0 and
 the effect scalars), effect sets (each switch on or off), drive modes and input sequences (step sizes,

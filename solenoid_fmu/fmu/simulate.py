@@ -267,7 +267,10 @@ def simulate_model(tables: MapTables, recording, *, drive: str = "auto", R_ohm: 
     """Drive ``model.py`` in this process exactly as :func:`simulate_recording` drives an FMU.
 
     The FMU ships the same ``model.py`` (its agreement with the FMU to 1e-9 is tested), so this is
-    the fast path for fitting effect parameters (``improve``); reports use the FMU itself.
+    the fast path for fitting effect parameters (``improve``); reports use the FMU itself. Where a C compiler is
+    there, the steps run in the native FMU's compiled step (:mod:`.native_sim`: the same numbers bit for bit,
+    ~100x sooner; ``SOLENOID_FMU_SIMULATOR=python`` runs the Python model); the result's ``simulated_by`` header
+    says which ran.
 
     Parameters
     ----------
