@@ -72,3 +72,40 @@ def test_identify_names_a_misspelt_header_resistance_and_takes_the_recording_as_
     assert typo.name in {r.path.name for r in used}  # used as a recording without a header R (stop 52)
     assert [n for n in notes if "coil_resistance" in n] == [
         f"{typo.name}: header 'coil_resistance_Ohm' is not read (recordings.md has 'coil_resistance_ohm')"]
+
+
+def _misspelt_copy(paths, tmp_path, kind):
+    """A copy of the first recording of ``kind`` with its header resistance key misspelt."""
+    src = next(Path(p) for p in paths if read_recording(p).kind == kind)
+    dst = tmp_path / src.name
+    dst.write_text(src.read_text().replace("# coil_resistance_ohm:", "# coil_resistance_Ohm:", 1))
+    return dst
+
+
+NOT_READ = "header 'coil_resistance_Ohm' is not read (recordings.md has 'coil_resistance_ohm')"
+
+
+def test_flux_validate_and_improve_name_a_misspelt_header_resistance(rig_maps, rig_campaign, tmp_path, capsys):
+    """Stop 54: the commands that read recordings themselves say it too (stop 53: identify and the pipeline)."""
+    import json
+
+    from solenoid_fmu import cli
+    from solenoid_fmu.loop import improve
+
+    _, _, fmu, _ = rig_maps
+    paths = rig_campaign("")
+    flux = _misspelt_copy(paths, tmp_path, "flux")
+    assert cli.main(["flux", str(flux), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["names_not_read"] == [f"{flux.name}: {NOT_READ}"]
+    assert f"note: {flux.name}: {NOT_READ}" in err
+    assert cli.main(["validate", str(fmu), str(flux), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["names_not_read"] == [f"{flux.name}: {NOT_READ}"] and NOT_READ in err
+    said = []
+    others = [p for p in paths if Path(p).name != flux.name][:3]
+    improve(fmu, [flux, *others], progress=said.append, max_effects=0)
+    assert f"{flux.name}: {NOT_READ}" in said
+    said.clear()  # recordings handed over already read (the pipeline, which said it at its step 1): not again
+    improve(fmu, [read_recording(p) for p in (flux, *others)], progress=said.append, max_effects=0)
+    assert not any(NOT_READ in line for line in said)

@@ -52,6 +52,8 @@ def _cli_validate(args) -> int:
         print(f"[{next(count)}/{n}] simulating {name} ...", file=sys.stderr, flush=True)
 
     result = validate(args.fmu, args.recordings, report_dir=args.report, progress=progress)
+    for line in result["names_not_read"]:
+        print(f"note: {line}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
         return 0

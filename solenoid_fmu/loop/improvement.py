@@ -80,7 +80,7 @@ from ..errors import MapsError
 from ..fileio import atomic_write_text, check_output_name, jsonable
 from ..fmu import build_fmu
 from ..maps import CharacteristicMaps, maps_tables, save_maps
-from ..measure import ESTIMATED_KEYS, headers_from_data, read_unipolar
+from ..measure import ESTIMATED_KEYS, Recording, headers_from_data, misspelt_in, read_unipolar
 from ..realtime import MapTables
 from .diagnosis import DEFAULT_THRESHOLD
 from .force_timing import ForceTiming, measure_force_timing
@@ -337,7 +337,8 @@ def improve(model, recordings, out_fmu=None, *, report_dir=None, max_effects: in
     recs, turned, left = read_unipolar(recordings)  # a rig's negative current mirrored, bipolar ones left out
     if not recs:
         raise ImproveError("improve needs at least one recording" + "".join(f"; left out {w}" for w in left))
-    for line in turned + [f"left out {w}" for w in left]:
+    read_here = not any(isinstance(item, Recording) for item in recordings)  # else the caller read them and said so
+    for line in turned + [f"left out {w}" for w in left] + (misspelt_in(recs) if read_here else []):
         say(line)
     if any(r.voltage_V is not None and r.coil_resistance_ohm is None for r in recs) and \
             not any(k in r.header for r in recs for k in ESTIMATED_KEYS):  # else done (the pipeline's step 1)

@@ -46,7 +46,7 @@ from pathlib import Path
 from ..errors import FmuInputError, RecordingError
 from ..fileio import atomic_write_bytes, atomic_write_text
 from ..fmu import simulate_model
-from ..measure import Recording, flux_linkage, read_recording, unipolar
+from ..measure import Recording, flux_linkage, misspelt_in, read_recording, unipolar
 from ..realtime import MapTables
 from .force_timing import ForceTiming, timing_of_fmu
 from .metrics import ValidationError, summarize, validate_cases
@@ -113,7 +113,8 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=No
         (``{"overlay": path, "residual": path}``, empty without ``report_dir``); ``figures`` at
         the top level lists every figure path in recording order (overlay, residual). A
         recording with nothing to compare (no force, no voltage in a current-driven run) gets
-        empty ``signals`` and a ``note``.
+        empty ``signals`` and a ``note``. ``names_not_read``: header keys and columns kept but not read for
+        looking like misspelt ones of recordings.md (:func:`solenoid_fmu.measure.misspelt_in`).
 
     Raises
     ------
@@ -137,7 +138,8 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=No
     lead = float(getattr(flux_of, "force_lead_samples", 0.0))
     return _validate(str(fmu_path), recs, lambda rec: cases_from_recordings(fmu_path, [rec], progress=progress,
                                                                             flux_of=flux_of), report_dir,
-                     extra={"force_lead_samples": lead, "force_timing": timing.as_dict()})
+                     extra={"force_lead_samples": lead, "force_timing": timing.as_dict(),
+                            "names_not_read": misspelt_in(recs)})
 
 
 def timed_cases(fmu_path, recordings, progress=None) -> list:

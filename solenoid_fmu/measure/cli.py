@@ -14,6 +14,7 @@ from ..argtypes import number
 from ..errors import RecordingError
 from ..fileio import refuse_overwriting_inputs, require_directory
 from .flux import flux_linkage
+from .format import misspelt_in
 from .plots import plot_flux
 from .polarity import read_unipolar
 from .reader import validate_recording
@@ -55,13 +56,14 @@ def _cmd_flux(args: argparse.Namespace) -> int:
     if left:
         raise RecordingError("flux", left)
     rec = recs[0]
-    for line in turned:
+    not_read = misspelt_in(recs)  # a misspelt header resistance is a recording without one: say so
+    for line in turned + not_read:
         print(f"note: {line}", file=sys.stderr)
     res = flux_linkage(rec, args.resistance_ohm, resistance=None if args.constant_resistance else "track")
     if args.plot is not None:
         plot_flux(res, args.plot, title=f"{args.recording.name}: Psi(i)")
     if args.json:
-        out = {"file": str(args.recording), **res.summary()}
+        out = {"file": str(args.recording), **res.summary(), "names_not_read": not_read}
         print(json.dumps(out))
         return 0
     x = rec.positions_m()
