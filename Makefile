@@ -45,7 +45,7 @@ lint: setup
 test: setup lint
 	SOLENOID_FMU_WORKERS=1 $(BIN)/python -m pytest -n 2 --dist worksteal -q
 
-# Everything but the tests marked slow (over ~20 s each): a quick check while working (~1.5 min on 2 cores).
+# Everything but the tests marked slow (over ~20 s each): a quick check while working (~5 min on 2 cores, stop 54).
 test-fast: setup lint
 	SOLENOID_FMU_WORKERS=1 $(BIN)/python -m pytest -n 2 --dist worksteal -q -m "not slow"
 
