@@ -15,6 +15,7 @@ import re
 import mapsfixture as mf
 import numpy as np
 import pytest
+from test_fmu_c_effects import EFFECTS  # all four effects, small data
 
 from solenoid_fmu.errors import FmuBuildError, FmuInputError
 from solenoid_fmu.fmu import native_sim, simulate_model
@@ -22,13 +23,6 @@ from solenoid_fmu.fmu.c_sources import default_params, maps_header
 from solenoid_fmu.measure import Recording
 from solenoid_fmu.realtime import load_tables
 
-EFFECTS = {
-    "hysteresis": {"thresholds": [0.01, 0.03, 0.06], "weights": [2.0, 1.0, 0.5],
-                   "shape": {"b_nodes": [0.0, 0.2, 0.4], "g_nodes": [1.0, 1.5, 0.5]}},
-    "eddy_ladder": {"G_S": [3e-3, 2e-3], "tau_s": [3e-4, 3e-3]},
-    "heating": {"C_th_J_per_K": 0.5, "R_th_K_per_W": 50.0, "alpha_per_K": 0.00393},
-    "friction": {"force_N": 2.5, "presliding_m": 2e-5},
-}
 OUTPUTS = ("current_A", "voltage_V", "force_N")
 
 
