@@ -141,3 +141,11 @@ def test_the_runtime_header_declares_the_data_the_fmu_header_writes_as_literals(
     sim = native_sim.sim_maps_header(tab, params)
     assert fmu_names <= set(re.findall(r"\b(SOL_[A-Z0-9_]+)\b", sim))
     assert repr(float(tab.psi_max_Wb)) not in sim and repr(float(tab.x_m[1])) not in sim
+
+
+def test_an_unwritable_cache_falls_back_to_the_temporary_folder(monkeypatch, tmp_path, tables):
+    blocked = tmp_path / "a-file"
+    blocked.write_text("not a folder")
+    monkeypatch.setenv("SOLENOID_FMU_CACHE", str(blocked))
+    lib = native_sim.library_file(native_sim.sim_maps_header(tables["plain"], default_params(tables["plain"])))
+    assert lib.is_file() and blocked not in lib.parents and lib.parent.name.startswith("solenoid-fmu-simulator-")

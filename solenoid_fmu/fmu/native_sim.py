@@ -202,7 +202,8 @@ def _library(header: str):
 
 def _compiled(files: dict, cc: str, key: str) -> Path:
     """The library file of ``key`` in :func:`cache_dir` (compiled there first when missing; atomic)."""
-    for root in (cache_dir(), Path(tempfile.gettempdir()) / f"solenoid-fmu-simulator-{os.getuid()}"):
+    user = getattr(os, "getuid", lambda: "user")()  # no getuid on Windows
+    for root in (cache_dir(), Path(tempfile.gettempdir()) / f"solenoid-fmu-simulator-{user}"):
         lib = root / f"sim-{key}.so"
         if lib.is_file():
             return lib
