@@ -8,7 +8,7 @@ from .io import write_curve_files
 from .measured import force_stroke_curve, group_flux
 from .parametrization import SusceptibilityModel, fit_to_curve, scaled_curve
 from .report import write_report
-from .result import IdentificationResult
+from .result import IdentificationResult, h_range_text
 
 __all__ = [
     "KAPPA_SIGNIFICANT",
@@ -16,6 +16,7 @@ __all__ = [
     "NLOPT_CODES",
     "FluxModel",
     "IdentificationResult",
+    "h_range_text",
     "SusceptibilityModel",
     "choose_currents",
     "fem_flux",

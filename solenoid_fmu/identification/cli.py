@@ -10,6 +10,7 @@ from ..errors import SolenoidError
 from ..fileio import refuse_overwriting_inputs, require_directory
 from .campaign import identify_from_recordings
 from .fit import DEFAULT_MESH_SIZE
+from .result import h_range_text
 
 __all__ = ["add_cli"]
 
@@ -62,7 +63,7 @@ def _cli(args) -> int:
     print(f"  flux error   MAE {res.mae_before * 100:.3f} % -> {res.mae_after * 100:.3f} %, "
           f"RMS {res.rms_before * 100:.3f} % -> {res.rms_after * 100:.3f} % of peak "
           f"(weighted by the hysteresis width: {wb * 100:.3f} % -> {wa * 100:.3f} %)")
-    print(f"  identified H range {lo:.4g} .. {hi:.4g} A/m (steel reaches {res.H_max_steel_A_per_m:.4g} A/m)")
+    print(f"  identified H range {h_range_text((lo, hi))} (steel reaches {res.H_max_steel_A_per_m:.4g} A/m)")
     print(f"  FEM solves {res.fem_solves}, sweeps {res.sweeps:.1f}, equivalent sweeps {res.equivalent_sweeps:.1f}, "
           f"wall {res.wall_time_s:.1f} s")
     print(f"  constraint residuals {res.constraint_residuals}")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..field import write_bh_csv
 from ..fileio import atomic_write_text
-from .result import IdentificationResult
+from .result import IdentificationResult, h_range_text
 
 __all__ = ["write_curve_files"]
 
@@ -19,7 +19,7 @@ def write_curve_files(result: IdentificationResult, out_csv, sources=()) -> list
     H, B = result.curve.table(n=200)
     lo, hi = result.identified_H_range_A_per_m
     comment = (f"B(H) identified by solenoid-fmu identify ({result.method}) at x = {result.x_m * 1e3:g} mm\n"
-               f"identified H range {lo:.4g} .. {hi:.4g} A/m (outside: shape of the start curve)\n"
+               f"identified H range {h_range_text((lo, hi))} (outside: shape of the start curve)\n"
                f"flux RMS error {result.rms_before * 100:.3g} % -> {result.rms_after * 100:.3g} % of peak\n"
                + (f"recordings: {', '.join(Path(str(s)).name for s in sources)}" if sources else ""))
     paths = [write_bh_csv(out_csv, H, B, comment=comment)]

@@ -8,7 +8,7 @@ import numpy as np
 
 from .parametrization import constraint_residuals
 from .result import IdentificationResult
-from .uncertainty import identified_range
+from .uncertainty import IDENTIFIED_B_STD, identified_range
 
 __all__ = ["result_from_joint", "held_out_table", "band_noise_scale", "MISFIT_SIGMA"]
 
@@ -86,6 +86,11 @@ def result_from_joint(fit, start_curve, mesh_size: float, extra: dict) -> Identi
     H_max = float(H_steel[o][np.searchsorted(cum, 0.995)])
     noise = band_noise_scale(cand)
     rng, H_u, unc = identified_range(fit.model, fit.theta, fit.J_w, noise, H_max)
+    if rng[1] <= 0.0:  # not a range of numbers to read as one: say it
+        warnings.append(f"the data pin B(H) to {IDENTIFIED_B_STD * 100:g} % (1 sigma) at no field strength: the "
+                        "identified H range is empty and the curve is the start curve's shape as the fit moved it; "
+                        "record flux at more currents, strokes or rates (eddy recordings tell eddy loops from "
+                        "hysteresis ones)")
     ex = dict(extra)
     ex.update({
         "chosen": fit.chosen,

@@ -9,7 +9,14 @@ import numpy as np
 from ..field import BHCurve
 from .parametrization import SusceptibilityModel
 
-__all__ = ["IdentificationResult"]
+__all__ = ["IdentificationResult", "h_range_text"]
+
+
+def h_range_text(h_range) -> str:
+    """The identified H range [A/m] in words: ``"LO .. HI A/m"``, or ``"none"`` where the data pin B(H) nowhere
+    (:func:`~.uncertainty.identified_range` returns (0, 0) then)."""
+    lo, hi = (float(v) for v in h_range)
+    return f"{lo:.4g} .. {hi:.4g} A/m" if hi > 0.0 else "none (the data pin B(H) nowhere, see the warnings)"
 
 
 @dataclass

@@ -7,6 +7,7 @@ import math
 import numbers
 from pathlib import Path
 
+from ..identification import h_range_text
 from .html import errors_table, write_html_report
 
 #: Longest note shown in the improvement table [characters]; longer ones end at a "; " with " ...".
@@ -79,8 +80,8 @@ def write_campaign_report(path, name, summary, ident, res, before, images: dict 
         {"heading": "B(H) identification",
          "text": (f"Method {s.get('method')}, {s.get('status')}; flux error (RMS of peak) "
                   f"{ident.rms_before * 100:.3g} % with the start curve, {ident.rms_after * 100:.3g} % after; "
-                  f"identified H range {s['identified_H_range_A_per_m'][0]:.3g} .. "
-                  f"{s['identified_H_range_A_per_m'][1]:.3g} A/m; {s.get('fem_solves')} FEM solves, "
+                  f"identified H range {h_range_text(s['identified_H_range_A_per_m'])}; {s.get('fem_solves')} "
+                  "FEM solves, "
                   f"{s.get('wall_time_s', 0):.0f} s."
                   + "".join(f"\n{n}" for n in s.get("notes", []))
                   + "".join(f"\nWARNING: {w}" for w in s.get("warnings", []))),
