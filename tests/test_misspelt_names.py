@@ -85,8 +85,8 @@ def _misspelt_copy(paths, tmp_path, kind):
 NOT_READ = "header 'coil_resistance_Ohm' is not read (recordings.md has 'coil_resistance_ohm')"
 
 
-def test_flux_validate_and_improve_name_a_misspelt_header_resistance(rig_maps, rig_campaign, tmp_path, capsys):
-    """Stop 54: the commands that read recordings themselves say it too (stop 53: identify and the pipeline)."""
+def test_flux_validate_diagnose_and_improve_name_a_misspelt_header_resistance(rig_maps, rig_campaign, tmp_path, capsys):
+    """Stops 54-55: the commands that read recordings themselves say it too (stop 53: identify and the pipeline)."""
     import json
 
     from solenoid_fmu import cli
@@ -102,6 +102,9 @@ def test_flux_validate_and_improve_name_a_misspelt_header_resistance(rig_maps, r
     assert cli.main(["validate", str(fmu), str(flux), "--json"]) == 0
     out, err = capsys.readouterr()
     assert json.loads(out)["names_not_read"] == [f"{flux.name}: {NOT_READ}"] and NOT_READ in err
+    assert cli.main(["diagnose", str(fmu), *paths[:3], str(flux), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["names_not_read"] == [f"{flux.name}: {NOT_READ}"] and f"note: {flux.name}" in err
     said = []
     others = [p for p in paths if Path(p).name != flux.name][:3]
     improve(fmu, [flux, *others], progress=said.append, max_effects=0)

@@ -87,7 +87,10 @@ def _cli_diagnose(args) -> int:
         if not args.json:
             print(f"simulating {name} ...", file=sys.stderr)
 
-    cases = timed_cases(args.fmu, args.recordings, progress=progress)
+    not_read = []
+    cases = timed_cases(args.fmu, args.recordings, progress=progress, not_read=not_read)
+    for line in not_read:  # a misspelt header resistance is a recording without one: say so
+        print(f"note: {line}", file=sys.stderr)
     if not cases:
         print("error: no recording has a signal to compare (voltage, current or force)", file=sys.stderr)
         return 1
@@ -95,6 +98,7 @@ def _cli_diagnose(args) -> int:
     if args.json:
         out = d.as_dict()
         out["ranking"] = [{k: c[k] for k in ("effect", "score", "explained", "per_signal")} for c in out["ranking"]]
+        out["names_not_read"] = not_read
         print(json.dumps(out))
         return 0
     print(f"{'effect':<12} {'score':>8} {'explained':>10}   per signal (held-out explained share)")

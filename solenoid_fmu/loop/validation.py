@@ -142,11 +142,15 @@ def validate(fmu_path, recordings, *, report_dir=None, progress=None, flux_of=No
                             "names_not_read": misspelt_in(recs)})
 
 
-def timed_cases(fmu_path, recordings, progress=None) -> list:
+def timed_cases(fmu_path, recordings, progress=None, not_read: list | None = None) -> list:
     """The residual cases of an FMU on ``recordings`` (:func:`cases_from_recordings`), the forces compared on
     the time base the recordings' force channel has (:func:`~solenoid_fmu.loop.force_timing.timing_of_fmu`):
-    what ``diagnose`` works on, compared as :func:`validate` compares."""
+    what ``diagnose`` works on, compared as :func:`validate` compares. ``not_read`` (a list), when given, receives
+    the header keys and columns kept but not read for looking like misspelt ones (as :func:`validate`'s
+    ``names_not_read``)."""
     recs = _read_all(recordings)
+    if not_read is not None:
+        not_read += misspelt_in(recs)
     flux_of = FluxCache()
     flux_of.note_ambient(recs)
     timing_of_fmu(fmu_path, recs, flux_of)
