@@ -52,8 +52,7 @@ def _cli_validate(args) -> int:
         print(f"[{next(count)}/{n}] simulating {name} ...", file=sys.stderr, flush=True)
 
     result = validate(args.fmu, args.recordings, report_dir=args.report, progress=progress)
-    for line in result["names_not_read"]:
-        print(f"note: {line}", file=sys.stderr)
+    _say_not_read(result["names_not_read"])
     if args.json:
         print(json.dumps(result))
         return 0
@@ -73,6 +72,13 @@ def _cli_validate(args) -> int:
 
 
 # -- diagnose ---------------------------------------------------------------------------------------
+def _say_not_read(lines) -> None:
+    """Names kept but not read for looking like misspelt ones, as notes on stderr (a misspelt header resistance is
+    a recording without one: the user must hear it)."""
+    for line in lines:
+        print(f"note: {line}", file=sys.stderr)
+
+
 def _add_diagnose(sub) -> None:
     p = sub.add_parser("diagnose", help="trace the FMU-vs-recording residual to the effect the model lacks")
     _fmu_and_recordings(p, "the FMU (solenoid-fmu export)")
@@ -89,8 +95,7 @@ def _cli_diagnose(args) -> int:
 
     not_read = []
     cases = timed_cases(args.fmu, args.recordings, progress=progress, not_read=not_read)
-    for line in not_read:  # a misspelt header resistance is a recording without one: say so
-        print(f"note: {line}", file=sys.stderr)
+    _say_not_read(not_read)
     if not cases:
         print("error: no recording has a signal to compare (voltage, current or force)", file=sys.stderr)
         return 1
